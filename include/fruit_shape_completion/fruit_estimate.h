@@ -1,0 +1,29 @@
+#pragma once
+// What the pipeline reports for one fruit (one cluster of the surface cloud).
+#include <fruit_shape_completion/superellipsoid.h>
+
+#include <string>
+
+namespace fruit_shape_completion {
+
+struct FruitEstimate {
+  int id = -1;         // stable from view to view while it is the same fruit
+  int n_points = 0;    // points of the cluster
+  Superellipsoid shape;  // the fit (meaningful when converged)
+  double volume = 0.0;       // superellipsoid volume [m^3]
+  double bbox_volume = 0.0;  // axis-aligned bounding box volume of the cluster's points [m^3]
+  Eigen::Vector3d points_centroid = Eigen::Vector3d::Zero();
+  Eigen::Vector3d center_prior = Eigen::Vector3d::Zero();  // w
+  bool converged = false;
+  bool accepted = false;  // converged and plausible: only accepted fruits should be published
+  std::string reason;     // why not accepted
+  double rms = 0.0;       // RMS radial residual [m]
+  int iterations = 0;
+  double fit_seconds = 0.0;
+  bool refitted = false;  // false: points unchanged since the previous update, fit reused
+  PointList missing_surface;  // predicted unseen surface samples (accepted fruits only)
+
+  Eigen::Vector3d center() const { return shape.t; }
+};
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,68 @@
+#pragma once
+// Surface cloud in, one superellipsoid per fruit out; called after every view.
+//
+// Fruits keep their id while they are the same fruit (clusters are matched to the previous
+// update's by shared occupied 1 cm cells); a fruit whose points did not change is not refitted;
+// a changed one starts from its previous fit.
+#include <fruit_shape_completion/euclidean_clustering.h>
+#include <fruit_shape_completion/fruit_estimate.h>
+#include <fruit_shape_completion/missing_surface.h>
+#include <fruit_shape_completion/superellipsoid_fit.h>
+#include <fruit_shape_completion/surface_normals.h>
+
+#include <cstdint>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+namespace fruit_shape_completion {
+
+struct PipelineParams {
+  ClusteringParams clustering;
+  NormalParams normals;
+  double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
+  FitParams fit;
+  MissingSurfaceParams missing;
+  // Throws std::invalid_argument naming the first bad value.
+  void validate() const;
+};
+
+struct PipelineStats {
+  int input_points = 0;
+  int non_finite_points = 0;  // skipped
+  int clusters = 0;
+  int fitted = 0;  // fits run this update (others reused)
+  int accepted = 0;
+  double seconds = 0.0;
+};
+
+class FruitShapePipeline {
+ public:
+  explicit FruitShapePipeline(const PipelineParams& params = PipelineParams());
+
+  // Processes a new surface cloud (the whole current fruit surface, not a delta) and returns
+  // all fruits, accepted or not, largest cluster first.
+  const std::vector<FruitEstimate>& update(const PointList& surface_cloud);
+
+  const std::vector<FruitEstimate>& fruits() const { return fruits_; }
+  const PipelineStats& lastStats() const { return stats_; }
+  const PipelineParams& params() const { return params_; }
+  void reset();
+
+ private:
+  struct Track {
+    FruitEstimate estimate;
+    std::uint64_t signature = 0;  // order-independent hash of the cluster's points
+    std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells
+  };
+
+  FruitEstimate estimateCluster(const PointList& points, int id, const Track* previous);
+
+  PipelineParams params_;
+  std::vector<Track> tracks_;
+  std::vector<FruitEstimate> fruits_;
+  PipelineStats stats_;
+  int next_id_ = 0;
+};
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,54 @@
+#pragma once
+// Fits a posed superellipsoid (11 parameters) to a fruit's surface points with Ceres
+// Levenberg-Marquardt, minimising
+//   sum_i d_i^2 + N alpha |t - w|^2 + N gamma ((a-b)^2 + (b-c)^2 + (c-a)^2)
+// d_i the radial distance of point i, w the centre prior, N the number of points.
+#include <fruit_shape_completion/superellipsoid.h>
+
+#include <Eigen/Dense>
+
+#include <string>
+
+namespace fruit_shape_completion {
+
+struct FitParams {
+  // Prior weights. The paper uses alpha = gamma = 0.1; on synthetic fruits seen from one side
+  // these pull the fit toward the (biased) normal-line centre and toward a sphere, costing
+  // several percent of volume accuracy (README, "Fit parameters"), so the defaults are weaker.
+  double alpha = 0.01;  // centre prior weight
+  double gamma = 0.0;   // axis similarity weight
+  double min_axis = 0.02, max_axis = 0.15;  // bounds of a, b, c [m]
+  double min_e = 0.3, max_e = 0.9;          // bounds of e1, e2
+  double initial_axis = 0.05;
+  double initial_e = 0.5;
+  int max_iterations = 100;  // per start
+  // Also start with the shape's z axis along world x and y, keep the lowest cost. Guards
+  // against the local minima of a single start at rpy = 0.
+  bool extra_starts = true;
+  // A converged fit whose RMS radial residual exceeds this is implausible and rejected.
+  double max_rms = 0.006;
+  // Throws std::invalid_argument naming the first bad value.
+  void validate() const;
+};
+
+struct FitResult {
+  Superellipsoid shape;
+  bool converged = false;  // the solver reached its tolerances within max_iterations
+  bool accepted = false;   // converged and plausible; only accepted fits are published
+  std::string reason;      // why a fit was rejected; empty when accepted
+  int iterations = 0;      // summed over all starts
+  double rms = 0.0;        // RMS radial residual over the points [m]
+  double seconds = 0.0;    // wall time of the fit
+};
+
+// `initial`: start from a previous fit (its shape is clamped into the bounds); otherwise the
+// paper's start: a = b = c = initial_axis, e1 = e2 = initial_e, t = center_prior, rpy = 0.
+FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& center_prior,
+                            const FitParams& params, const Superellipsoid* initial = nullptr);
+
+// The fit's data term for inspection and tests: the signed radial residuals of the points and
+// (if J is given) their N x 11 Jacobian, columns a, b, c, e1, e2, tx, ty, tz, roll, pitch, yaw.
+void evaluateRadialResiduals(const PointList& points, const Superellipsoid& shape,
+                             Eigen::VectorXd* residuals, Eigen::MatrixXd* J);
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,34 @@
+#pragma once
+// Per-point surface normals from the PCA of each point's neighbourhood.
+#include <fruit_shape_completion/types.h>
+
+#include <vector>
+
+namespace fruit_shape_completion {
+
+struct NormalParams {
+  double radius = 0.015;  // neighbourhood radius [m]
+  int min_neighbours = 5;
+  // A neighbourhood that is a line, not a surface (middle / largest eigenvalue below this),
+  // gives no normal.
+  double min_planarity = 0.05;
+  // Normals are computed at no more than this many evenly spread points of a cloud (each
+  // still from its full neighbourhood); the rest get none. The centre prior and the shape check
+  // need a few hundred normals, not thousands. 0: every point.
+  int max_points = 500;
+};
+
+struct SurfaceNormals {
+  // One entry per input point; a point without a valid normal (degenerate neighbourhood, or
+  // not among the max_points evaluated) gets NaN, so callers drop it on its own instead of
+  // discarding the whole cluster.
+  std::vector<Eigen::Vector3d> normals;
+  int valid = 0;
+};
+
+// Normals are oriented toward `inside` (e.g. the cluster centroid: for a convex fruit shell
+// it lies on the inner side of every tangent plane).
+SurfaceNormals estimateNormals(const PointList& points, const NormalParams& params,
+                               const Eigen::Vector3d& inside);
+
+}  // namespace fruit_shape_completion

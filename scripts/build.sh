@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Configures (once) and builds the package in build/ (Release unless BUILD_TYPE says otherwise).
+# Usage: scripts/build.sh [extra make targets]
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$ROOT/scripts/setup.sh"
+BUILD_DIR="${BUILD_DIR:-$ROOT/build}"
+BUILD_TYPE="${BUILD_TYPE:-Release}"
+# catkin's helpers need Debian's python (the pyenv python3 on PATH lacks catkin_pkg).
+export PATH="/usr/bin:$PATH"
+if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
+  cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" \
+        -DPYTHON_EXECUTABLE=/usr/bin/python3 >"$BUILD_DIR.configure.log" 2>&1 || {
+    cat "$BUILD_DIR.configure.log" >&2; exit 1; }
+fi
+JOBS="${JOBS:-$(nproc)}"
+cmake --build "$BUILD_DIR" -j "$JOBS" ${1:+--target "$@"}

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs the Debian packages the package builds against. Idempotent: does nothing
+# (and needs no network) when everything is already installed.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake pkg-config
+  catkin python3-catkin-pkg python3-empy
+  ros-base-dev pluginlib-dev librostest-dev libpcl-ros-dev
+  libeigen3-dev libceres-dev libpcl-dev liboctomap-dev
+  libassimp-dev libembree-dev libyaml-cpp-dev
+  libgtest-dev libbenchmark-dev
+  python3-numpy python3-matplotlib
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+echo "setup: installing ${missing[*]}" >&2
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2

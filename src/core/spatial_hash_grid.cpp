@@ -1,0 +1,47 @@
+#include <fruit_shape_completion/spatial_hash_grid.h>
+
+#include <algorithm>
+
+namespace fruit_shape_completion {
+
+SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
+    : cell_(cell_size), inv_cell_(1.0 / cell_size) {
+  // Sort point indices by cell key, then record each cell's range: one allocation for all cells.
+  std::vector<std::pair<std::uint64_t, int>> keyed;
+  keyed.reserve(points.size());
+  for (int i = 0; i < static_cast<int>(points.size()); ++i) {
+    const Point& p = points[i];
+    if (!p.allFinite()) continue;
+    keyed.emplace_back(packKey(static_cast<std::int64_t>(std::floor(p.x() * inv_cell_)),
+                               static_cast<std::int64_t>(std::floor(p.y() * inv_cell_)),
+                               static_cast<std::int64_t>(std::floor(p.z() * inv_cell_))),
+                       i);
+  }
+  std::sort(keyed.begin(), keyed.end());
+  sorted_.resize(keyed.size());
+  index_.resize(keyed.size());
+  cells_.reserve(keyed.size() / 4 + 1);
+  for (size_t i = 0; i < keyed.size();) {
+    size_t j = i;
+    for (; j < keyed.size() && keyed[j].first == keyed[i].first; ++j) {
+      index_[j] = keyed[j].second;
+      sorted_[j] = points[keyed[j].second];
+    }
+    cells_.emplace(keyed[i].first, std::make_pair(static_cast<int>(i), static_cast<int>(j)));
+    i = j;
+  }
+}
+
+void SpatialHashGrid::radiusSearch(const Point& p, double radius, std::vector<int>& out) const {
+  out.clear();
+  visitWithin(p, radius, [&out](const Point&, int idx) {
+    out.push_back(idx);
+    return true;
+  });
+}
+
+bool SpatialHashGrid::anyWithin(const Point& p, double radius) const {
+  return !visitWithin(p, radius, [](const Point&, int) { return false; });
+}
+
+}  // namespace fruit_shape_completion

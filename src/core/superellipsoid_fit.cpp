@@ -1,0 +1,320 @@
+#include <fruit_shape_completion/superellipsoid_fit.h>
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+namespace fruit_shape_completion {
+
+namespace {
+
+// Radial distances of all points in one cost function with an analytic Jacobian: the rotation
+// and its derivatives are computed once per evaluation instead of once per point, and the
+// powers are shared between value and derivatives (exp/log form). Residual i is
+// |r0| (1 - F^(-e1/2)), signed so that its square is smooth; its magnitude is d_i.
+// Parameter blocks: shape (a, b, c, e1, e2), translation (3), rpy (3).
+class RadialResiduals : public ceres::CostFunction {
+ public:
+  explicit RadialResiduals(const std::vector<Point>& points) : P_(3, points.size()) {
+    for (size_t i = 0; i < points.size(); ++i) P_.col(i) = points[i];
+    set_num_residuals(static_cast<int>(points.size()));
+    mutable_parameter_block_sizes()->assign({5, 3, 3});
+  }
+
+  // Column-wise Eigen array expressions: exp/log run vectorised over all points.
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    using Eigen::ArrayXd;
+    const double* sh = params[0];
+    const double a = sh[0], b = sh[1], c = sh[2], e1 = sh[3], e2 = sh[4];
+    const double* rpy = params[2];
+    const double cr = std::cos(rpy[0]), sr = std::sin(rpy[0]);
+    const double cp = std::cos(rpy[1]), sp = std::sin(rpy[1]);
+    const double cy = std::cos(rpy[2]), sy = std::sin(rpy[2]);
+    Eigen::Matrix3d Rx, Ry, Rz, dRx, dRy, dRz;
+    Rx << 1, 0, 0, 0, cr, -sr, 0, sr, cr;
+    Ry << cp, 0, sp, 0, 1, 0, -sp, 0, cp;
+    Rz << cy, -sy, 0, sy, cy, 0, 0, 0, 1;
+    dRx << 0, 0, 0, 0, -sr, -cr, 0, cr, -sr;
+    dRy << -sp, 0, cp, 0, 0, 0, -cp, 0, -sp;
+    dRz << -sy, -cy, 0, cy, -sy, 0, 0, 0, 0;
+    const Eigen::Matrix3d Rt = (Rz * Ry * Rx).transpose();
+    const Eigen::Map<const Eigen::Vector3d> t(params[1]);
+
+    const Eigen::Matrix3Xd Q = P_.colwise() - t;  // p - t
+    const Eigen::Matrix3Xd L = Rt * Q;            // local coordinates
+    const double eps = 1e-18;
+    const double ie1 = 1.0 / e1, ie2 = 1.0 / e2;
+    // Column arrays (never mix Eigen row and column vectors in one coefficient-wise expression).
+    const ArrayXd Lx = L.row(0).transpose().array();
+    const ArrayXd Ly = L.row(1).transpose().array();
+    const ArrayXd Lz = L.row(2).transpose().array();
+    const ArrayXd x2 = Lx.square() + eps;
+    const ArrayXd y2 = Ly.square() + eps;
+    const ArrayXd z2 = Lz.square() + eps;
+    const ArrayXd lx = x2.log() - std::log(a * a);
+    const ArrayXd ly = y2.log() - std::log(b * b);
+    const ArrayXd lz = z2.log() - std::log(c * c);
+    const ArrayXd X = (lx * ie2).exp(), Y = (ly * ie2).exp(), Z = (lz * ie1).exp();
+    const ArrayXd g = X + Y;
+    const ArrayXd lg = g.log();
+    const ArrayXd G = (lg * (e2 * ie1)).exp();
+    const ArrayXd F = G + Z;
+    const ArrayXd lF = F.log();
+    const ArrayXd s = (lF * (-0.5 * e1)).exp();
+    const ArrayXd r = (x2 + y2 + z2).sqrt();
+    const Eigen::Index n = P_.cols();
+    Eigen::Map<ArrayXd>(residuals, n) = r * (1.0 - s);
+    if (jacobians == nullptr) return true;
+
+    const ArrayXd dGdg = (e2 * ie1) * G / g;
+    const ArrayXd k = 0.5 * e1 * r * s / F;  // -r * ds/dF
+    // d residual / d local
+    Eigen::Matrix3Xd DL(3, n);
+    const ArrayXd radial = (1.0 - s) / r;
+    DL.row(0) = (Lx * (radial + k * dGdg * (2.0 * ie2) * X / x2)).matrix().transpose();
+    DL.row(1) = (Ly * (radial + k * dGdg * (2.0 * ie2) * Y / y2)).matrix().transpose();
+    DL.row(2) = (Lz * (radial + k * (2.0 * ie1) * Z / z2)).matrix().transpose();
+    using RowMajorX = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    if (jacobians[0]) {
+      Eigen::Map<RowMajorX> J(jacobians[0], n, 5);
+      J.col(0) = (k * dGdg * (-2.0 * ie2 / a) * X).matrix();
+      J.col(1) = (k * dGdg * (-2.0 * ie2 / b) * Y).matrix();
+      J.col(2) = (k * (-2.0 * ie1 / c) * Z).matrix();
+      // e1 enters G's exponent, Z's exponent and the exponent of s itself.
+      J.col(3) = (k * (-(G * lg) * (e2 * ie1 * ie1) - (Z * lz) * (ie1 * ie1)) +
+                  0.5 * r * s * lF).matrix();
+      // e2 enters G's exponent and X, Y.
+      J.col(4) = (k * ((G * lg) * ie1 - dGdg * (X * lx + Y * ly) * (ie2 * ie2))).matrix();
+    }
+    if (jacobians[1]) {  // d local / d t = -R^T
+      Eigen::Map<RowMajorX> J(jacobians[1], n, 3);
+      J = -(DL.transpose() * Rt);
+    }
+    if (jacobians[2]) {  // d local / d angle = dR^T (p - t)
+      Eigen::Map<RowMajorX> J(jacobians[2], n, 3);
+      const Eigen::Matrix3d dRt[3] = {(Rz * Ry * dRx).transpose(), (Rz * dRy * Rx).transpose(),
+                                      (dRz * Ry * Rx).transpose()};
+      for (int a_k = 0; a_k < 3; ++a_k)
+        J.col(a_k) = (DL.array() * (dRt[a_k] * Q).array()).colwise().sum().transpose().matrix();
+    }
+    return true;
+  }
+
+ private:
+  Eigen::Matrix3Xd P_;
+};
+
+// sqrt(N alpha) (t - w)
+struct CenterPrior {
+  CenterPrior(const Eigen::Vector3d& w, double weight) : w_(w), s_(std::sqrt(weight)) {}
+  template <typename T>
+  bool operator()(const T* t, T* residual) const {
+    for (int k = 0; k < 3; ++k) residual[k] = T(s_) * (t[k] - T(w_[k]));
+    return true;
+  }
+  Eigen::Vector3d w_;
+  double s_;
+};
+
+// sqrt(N gamma) (a - b, b - c, c - a)
+struct AxisSimilarityPrior {
+  explicit AxisSimilarityPrior(double weight) : s_(std::sqrt(weight)) {}
+  template <typename T>
+  bool operator()(const T* shape, T* residual) const {
+    residual[0] = T(s_) * (shape[0] - shape[1]);
+    residual[1] = T(s_) * (shape[1] - shape[2]);
+    residual[2] = T(s_) * (shape[2] - shape[0]);
+    return true;
+  }
+  double s_;
+};
+
+double wrapAngle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
+
+}  // namespace
+
+void evaluateRadialResiduals(const PointList& points, const Superellipsoid& se,
+                             Eigen::VectorXd* residuals, Eigen::MatrixXd* J) {
+  const RadialResiduals cost(points);
+  const double shape[5] = {se.a, se.b, se.c, se.e1, se.e2};
+  const double* params[3] = {shape, se.t.data(), se.rpy.data()};
+  const int n = static_cast<int>(points.size());
+  Eigen::VectorXd r(n);
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  RowMajor j0(n, 5), j1(n, 3), j2(n, 3);
+  double* jac[3] = {j0.data(), j1.data(), j2.data()};
+  cost.Evaluate(params, r.data(), J ? jac : nullptr);
+  if (residuals) *residuals = r;
+  if (J) {
+    J->resize(n, 11);
+    *J << j0, j1, j2;
+  }
+}
+
+void FitParams::validate() const {
+  auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
+  if (!(alpha >= 0.0) || !std::isfinite(alpha)) fail("alpha must be a finite value >= 0");
+  if (!(gamma >= 0.0) || !std::isfinite(gamma)) fail("gamma must be a finite value >= 0");
+  if (!(min_axis > 0.0) || !(max_axis > min_axis) || !std::isfinite(max_axis))
+    fail("axis bounds must satisfy 0 < min_axis < max_axis");
+  if (!(min_e > 0.0) || !(max_e > min_e) || !(max_e <= 2.0))
+    fail("exponent bounds must satisfy 0 < min_e < max_e <= 2");
+  if (!(initial_axis >= min_axis && initial_axis <= max_axis))
+    fail("initial_axis must lie within the axis bounds");
+  if (!(initial_e >= min_e && initial_e <= max_e))
+    fail("initial_e must lie within the exponent bounds");
+  if (max_iterations < 1) fail("max_iterations must be >= 1");
+  if (!(max_rms > 0.0)) fail("max_rms must be > 0");
+}
+
+namespace {
+
+constexpr size_t kStartSubsample = 250;  // points per competing start
+
+struct Solution {
+  double shape[5], t[3], rpy[3];
+  double cost = 0.0;
+  bool converged = false;
+  int iterations = 0;
+  std::string message;
+};
+
+// One Levenberg-Marquardt run from `sol`'s parameters, which it overwrites.
+void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior,
+           const FitParams& params, Solution& sol) {
+  ceres::Problem problem;
+  const double n = static_cast<double>(points.size());
+  problem.AddResidualBlock(new RadialResiduals(points), nullptr, sol.shape, sol.t, sol.rpy);
+  if (params.alpha > 0.0)
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CenterPrior, 3, 3>(
+                                 new CenterPrior(center_prior, n * params.alpha)),
+                             nullptr, sol.t);
+  if (params.gamma > 0.0)
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<AxisSimilarityPrior, 3, 5>(
+                                 new AxisSimilarityPrior(n * params.gamma)),
+                             nullptr, sol.shape);
+  for (int k = 0; k < 5; ++k) {
+    problem.SetParameterLowerBound(sol.shape, k, k < 3 ? params.min_axis : params.min_e);
+    problem.SetParameterUpperBound(sol.shape, k, k < 3 ? params.max_axis : params.max_e);
+  }
+  ceres::Solver::Options options;
+  options.minimizer_type = ceres::TRUST_REGION;
+  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  options.max_num_iterations = params.max_iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  sol.cost = summary.final_cost;
+  sol.converged = summary.termination_type == ceres::CONVERGENCE;
+  sol.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  sol.message = summary.message;
+}
+
+}  // namespace
+
+FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& center_prior,
+                            const FitParams& params, const Superellipsoid* initial) {
+  const auto start = std::chrono::steady_clock::now();
+  FitResult result;
+  auto finish = [&](const std::string& reason) {
+    result.reason = reason;
+    result.accepted = reason.empty();
+    result.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  };
+  if (!center_prior.allFinite()) return finish("centre prior is not finite");
+  std::vector<Point> finite;
+  finite.reserve(points.size());
+  for (const auto& p : points)
+    if (p.allFinite()) finite.push_back(p);
+  const int n = static_cast<int>(finite.size());
+  if (n < 11) return finish("fewer finite points than parameters");
+
+  // Starting points: a previous fit (clamped into the bounds), or the paper's start
+  // (a = b = c = initial_axis, e1 = e2 = initial_e, t = w, rpy = 0) plus, with
+  // extra_starts, the same with the shape's z axis along world x and along world y, since
+  // LM rarely swaps which axis carries e1.
+  std::vector<Solution> starts;
+  if (initial != nullptr && initial->isFinite()) {
+    Solution s;
+    const double v[5] = {initial->a, initial->b, initial->c, initial->e1, initial->e2};
+    for (int k = 0; k < 5; ++k)
+      s.shape[k] = std::min(k < 3 ? params.max_axis : params.max_e,
+                            std::max(k < 3 ? params.min_axis : params.min_e, v[k]));
+    for (int k = 0; k < 3; ++k) {
+      s.t[k] = initial->t[k];
+      s.rpy[k] = initial->rpy[k];
+    }
+    starts.push_back(s);
+  } else {
+    const double rotations[3][3] = {{0, 0, 0}, {0, M_PI / 2, 0}, {M_PI / 2, 0, 0}};
+    const int count = params.extra_starts ? 3 : 1;
+    for (int r = 0; r < count; ++r) {
+      Solution s;
+      s.shape[0] = s.shape[1] = s.shape[2] = params.initial_axis;
+      s.shape[3] = s.shape[4] = params.initial_e;
+      for (int k = 0; k < 3; ++k) {
+        s.t[k] = center_prior[k];
+        s.rpy[k] = rotations[r][k];
+      }
+      starts.push_back(s);
+    }
+  }
+  // Several starts compete on an even subsample of the points; only the winner is refined on
+  // all of them.
+  const Solution* best = &starts.front();
+  if (starts.size() > 1) {
+    std::vector<Point> subsample;
+    const size_t step = std::max<size_t>(1, finite.size() / kStartSubsample);
+    for (size_t i = 0; i < finite.size(); i += step) subsample.push_back(finite[i]);
+    for (auto& s : starts) {
+      solve(subsample, center_prior, params, s);
+      result.iterations += s.iterations;
+      if ((s.converged && !best->converged) || (s.converged == best->converged && s.cost < best->cost))
+        best = &s;
+    }
+  }
+  Solution final_solution = *best;
+  solve(finite, center_prior, params, final_solution);
+  result.iterations += final_solution.iterations;
+  best = &final_solution;
+
+  Superellipsoid& se = result.shape;
+  se.a = best->shape[0];
+  se.b = best->shape[1];
+  se.c = best->shape[2];
+  se.e1 = best->shape[3];
+  se.e2 = best->shape[4];
+  se.t = Eigen::Vector3d(best->t[0], best->t[1], best->t[2]);
+  se.rpy = Eigen::Vector3d(wrapAngle(best->rpy[0]), wrapAngle(best->rpy[1]), wrapAngle(best->rpy[2]));
+  result.converged = best->converged;
+
+  double sum = 0.0;
+  for (const auto& p : finite) sum += std::pow(se.radialDistance(p), 2);
+  result.rms = std::sqrt(sum / n);
+
+  if (!se.isFinite() || !std::isfinite(result.rms)) return finish("fit produced non-finite values");
+  if (!result.converged) {
+    std::ostringstream os;
+    os << "not converged after " << best->iterations << " iterations (" << best->message << ")";
+    return finish(os.str());
+  }
+  if (result.rms > params.max_rms) {
+    std::ostringstream os;
+    os << "implausible: RMS residual " << result.rms * 1000.0 << " mm exceeds "
+       << params.max_rms * 1000.0 << " mm";
+    return finish(os.str());
+  }
+  return finish("");
+}
+
+}  // namespace fruit_shape_completion

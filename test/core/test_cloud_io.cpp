@@ -1,0 +1,222 @@
+#include <fruit_shape_completion/cloud_io.h>
+#include <fruit_shape_completion/synthetic_fruit.h>
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <string>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+std::string tempPath(const std::string& name) {
+  const char* dir = std::getenv("TMPDIR");
+  return std::string(dir ? dir : "/tmp") + "/fsc_test_" + std::to_string(::getpid()) + "_" + name;
+}
+
+void writeFile(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+struct CommandResult {
+  int status;
+  std::string out;
+};
+
+CommandResult run(const std::string& cmd) {
+  CommandResult r{-1, ""};
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), p)) > 0) r.out.append(buf, n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+std::string fitCloudExe() {
+  const char* dir = std::getenv("FSC_BIN_DIR");
+  return std::string(dir ? dir : ".") + "/fit_cloud";
+}
+
+}  // namespace
+
+TEST(CloudIo, PlyRoundTripWithColours) {
+  const PointList pts = {Eigen::Vector3d(0.1, 0.2, 0.3), Eigen::Vector3d(-1, 2.5, 1e-3)};
+  const std::string path = tempPath("rt.ply");
+  std::string err;
+  ASSERT_TRUE(writePly(path, pts, {{1, 2, 3}, {4, 5, 6}}, &err)) << err;
+  const CloudFile f = readPointCloud(path);
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_EQ(f.points.size(), 2u);
+  for (int i = 0; i < 2; ++i) EXPECT_LT((f.points[i] - pts[i]).norm(), 1e-6);
+  std::remove(path.c_str());
+}
+
+TEST(CloudIo, BinaryPlyWithDoublesAndExtraProperties) {
+  const std::string path = tempPath("bin.ply");
+  std::string data =
+      "ply\nformat binary_little_endian 1.0\ncomment test\nelement vertex 2\n"
+      "property uchar flag\nproperty double x\nproperty double y\nproperty double z\n"
+      "property float intensity\nelement face 0\nproperty list uchar int vertex_indices\n"
+      "end_header\n";
+  for (int v = 0; v < 2; ++v) {
+    const unsigned char flag = 7;
+    const double xyz[3] = {1.0 + v, 2.0, -3.0};
+    const float intensity = 0.5f;
+    data.append(reinterpret_cast<const char*>(&flag), 1);
+    data.append(reinterpret_cast<const char*>(xyz), sizeof(xyz));
+    data.append(reinterpret_cast<const char*>(&intensity), 4);
+  }
+  writeFile(path, data);
+  const CloudFile f = readPointCloud(path);
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_EQ(f.points.size(), 2u);
+  EXPECT_EQ(f.points[1], Eigen::Vector3d(2, 2, -3));
+  // Truncated data: a clear error naming the vertex.
+  writeFile(path, data.substr(0, data.size() - 5));
+  const CloudFile g = readPointCloud(path);
+  EXPECT_FALSE(g.ok());
+  EXPECT_NE(g.error.find("truncated"), std::string::npos) << g.error;
+  std::remove(path.c_str());
+}
+
+TEST(CloudIo, TextWithExtraColumnsCommentsAndNaN) {
+  const std::string path = tempPath("pts.txt");
+  writeFile(path, "# x y z r g b\n0.1 0.2 0.3 255 0 0\n\n1,2,3\nnan 0 0\n");
+  const CloudFile f = readPointCloud(path);
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_EQ(f.points.size(), 3u);
+  EXPECT_EQ(f.points[1], Eigen::Vector3d(1, 2, 3));
+  EXPECT_FALSE(f.points[2].allFinite());
+  writeFile(path, "0.1 0.2 0.3\n0.1 oops 0.3\n");
+  const CloudFile g = readPointCloud(path);
+  EXPECT_FALSE(g.ok());
+  EXPECT_NE(g.error.find("line 2"), std::string::npos) << g.error;
+  std::remove(path.c_str());
+}
+
+TEST(CloudIo, PcdAsciiAndMalformedFiles) {
+  const std::string path = tempPath("c.pcd");
+  writeFile(path,
+            "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n0.5 0.25 1\n-1 0 2\n");
+  const CloudFile f = readPointCloud(path);
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_EQ(f.points.size(), 2u);
+  EXPECT_EQ(f.points[0], Eigen::Vector3d(0.5, 0.25, 1));
+  writeFile(path, "this is not a pcd file\n");
+  const CloudFile junk = readPointCloud(path);
+  EXPECT_FALSE(junk.ok());
+  EXPECT_NE(junk.error.find("malformed PCD"), std::string::npos) << junk.error;
+  std::remove(path.c_str());
+  const CloudFile missing = readPointCloud(tempPath("does_not_exist.ply"));
+  EXPECT_FALSE(missing.ok());
+  EXPECT_NE(missing.error.find("cannot open"), std::string::npos);
+  const std::string bad_ply = tempPath("bad.ply");
+  writeFile(bad_ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n2\n3\n");
+  const CloudFile nxyz = readPointCloud(bad_ply);
+  EXPECT_FALSE(nxyz.ok());
+  EXPECT_NE(nxyz.error.find("x, y, z"), std::string::npos) << nxyz.error;
+  std::remove(bad_ply.c_str());
+}
+
+TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
+  const std::string path = tempPath("b.pcd");
+  const std::string header =
+      "VERSION .7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 3\n"
+      "HEIGHT 1\nPOINTS 3\n";
+  const float xyz[3][3] = {{0.1f, 0.2f, 0.3f}, {1.f, 2.f, 3.f}, {-1.f, -2.f, -3.f}};
+  std::string binary = header + "DATA binary\n";
+  for (const auto& p : xyz) {
+    binary.append(reinterpret_cast<const char*>(p), 12);
+    binary.append(4, '\0');
+  }
+  writeFile(path, binary);
+  CloudFile f = readPointCloud(path);
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_EQ(f.points.size(), 3u);
+  EXPECT_LT((f.points[1] - Eigen::Vector3d(1, 2, 3)).norm(), 1e-6);
+  // binary_compressed: field-major payload, LZF-coded. Literal runs only: a valid LZF stream.
+  std::string raw;
+  for (int k = 0; k < 3; ++k)
+    for (const auto& p : xyz) raw.append(reinterpret_cast<const char*>(&p[k]), 4);
+  raw.append(12, '\0');  // rgb
+  std::string lzf;
+  for (size_t i = 0; i < raw.size(); i += 32) {
+    const size_t n = std::min<size_t>(32, raw.size() - i);
+    lzf.push_back(static_cast<char>(n - 1));
+    lzf.append(raw, i, n);
+  }
+  const std::uint32_t sizes[2] = {static_cast<std::uint32_t>(lzf.size()),
+                                  static_cast<std::uint32_t>(raw.size())};
+  writeFile(path, header + "DATA binary_compressed\n" +
+                      std::string(reinterpret_cast<const char*>(sizes), 8) + lzf);
+  f = readPointCloud(path);
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_EQ(f.points.size(), 3u);
+  EXPECT_LT((f.points[2] - Eigen::Vector3d(-1, -2, -3)).norm(), 1e-6);
+  // A corrupt payload is refused, not read past its end.
+  writeFile(path, header + "DATA binary_compressed\n" +
+                      std::string(reinterpret_cast<const char*>(sizes), 8) + lzf.substr(0, 20));
+  f = readPointCloud(path);
+  EXPECT_FALSE(f.ok());
+  std::remove(path.c_str());
+}
+
+TEST(FitCloudTool, JsonOutputMatchesTheFruitInTheFile) {
+  std::mt19937 rng(12);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0.1, 0.4, 0.6));
+  ScanParams scan;
+  scan.visible_fraction = 0.7;
+  PointList pts = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+  pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+  const std::string input = tempPath("fruit.txt");
+  {
+    std::ofstream out(input);
+    out.precision(9);
+    for (const auto& p : pts) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  }
+  const std::string surface = tempPath("surface.ply");
+  const CommandResult r =
+      run(fitCloudExe() + " --input " + input + " --json --surface-out " + surface + " 2>/dev/null");
+  ASSERT_EQ(r.status, 0) << r.out;
+  // One fruit, and its volume is the truth's within 5 %.
+  EXPECT_EQ(r.out.find("\"id\""), r.out.rfind("\"id\"")) << r.out;
+  const auto pos = r.out.find("\"volume_m3\": ");
+  ASSERT_NE(pos, std::string::npos) << r.out;
+  const double volume = std::strtod(r.out.c_str() + pos + 13, nullptr);
+  EXPECT_NEAR(volume, truth.volume(), 0.05 * truth.volume()) << r.out;
+  EXPECT_NE(r.out.find("\"non_finite_points\": 1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"converged\": true"), std::string::npos) << r.out;
+  // The surface file holds the 300 samples of the fit, on the true surface.
+  const CloudFile s = readPointCloud(surface);
+  ASSERT_TRUE(s.ok()) << s.error;
+  ASSERT_EQ(s.points.size(), 300u);
+  for (const auto& p : s.points) EXPECT_LT(truth.radialDistance(p), 0.004);
+  std::remove(input.c_str());
+  std::remove(surface.c_str());
+}
+
+TEST(FitCloudTool, BadFilesAndArgumentsFailWithAMessage) {
+  const std::string exe = fitCloudExe();
+  CommandResult r = run(exe + " --input /nonexistent/cloud.pcd 2>&1");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("cannot open"), std::string::npos) << r.out;
+  r = run(exe + " --bogus 2>&1");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("usage"), std::string::npos) << r.out;
+  const std::string empty = tempPath("empty.txt");
+  writeFile(empty, "");
+  r = run(exe + " --input " + empty + " --json 2>/dev/null");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.out.find("\"fruits\": []"), std::string::npos) << r.out;
+  std::remove(empty.c_str());
+}

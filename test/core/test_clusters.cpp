@@ -1,0 +1,139 @@
+#include <fruit_shape_completion/euclidean_clustering.h>
+#include <fruit_shape_completion/fruit_center.h>
+#include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/surface_normals.h>
+#include <fruit_shape_completion/synthetic_fruit.h>
+#include <gtest/gtest.h>
+
+#include <limits>
+
+using namespace fruit_shape_completion;
+
+namespace {
+Superellipsoid sphere(double r, const Eigen::Vector3d& c) {
+  Superellipsoid s;
+  s.a = s.b = s.c = r;
+  s.e1 = s.e2 = 1.0;
+  s.t = c;
+  return s;
+}
+PointList scan(const Superellipsoid& s, double seen = 1.0, unsigned seed = 1) {
+  ScanParams p;
+  p.visible_fraction = seen;
+  p.seed = seed;
+  return scanFruit(SyntheticFruit::fromSuperellipsoid(s), p);
+}
+}  // namespace
+
+TEST(SpatialHashGrid, RadiusSearchMatchesBruteForce) {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(-0.1, 0.1);
+  PointList pts;
+  for (int i = 0; i < 2000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
+  pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+  const SpatialHashGrid grid(pts, 0.02);
+  std::vector<int> found;
+  for (int q = 0; q < 50; ++q) {
+    const Point p(u(rng), u(rng), u(rng));
+    for (double radius : {0.01, 0.02, 0.035}) {
+      grid.radiusSearch(p, radius, found);
+      std::sort(found.begin(), found.end());
+      std::vector<int> brute;
+      for (int i = 0; i < static_cast<int>(pts.size()); ++i)
+        if ((pts[i] - p).norm() <= radius) brute.push_back(i);
+      EXPECT_EQ(found, brute);
+      EXPECT_EQ(grid.anyWithin(p, radius), !brute.empty());
+    }
+  }
+}
+
+TEST(EuclideanClustering, TwoFruitsTwoCentimetresApartStayTwo) {
+  // Surfaces 2 cm apart (as a TSDF surface would deliver them) are two clusters at 1 cm.
+  PointList cloud = scan(sphere(0.04, Eigen::Vector3d(0, 0, 0)));
+  const PointList other = scan(sphere(0.035, Eigen::Vector3d(0.095, 0, 0)), 1.0, 2);
+  cloud.insert(cloud.end(), other.begin(), other.end());
+  const auto clusters = euclideanClusters(cloud, ClusteringParams());
+  ASSERT_EQ(clusters.size(), 2u);
+  EXPECT_EQ(clusters[0].size() + clusters[1].size(), cloud.size());
+  // Touching fruits merge: clustering alone cannot split them.
+  PointList touching = scan(sphere(0.04, Eigen::Vector3d(0, 0, 0)));
+  const PointList near = scan(sphere(0.04, Eigen::Vector3d(0.083, 0, 0)), 1.0, 3);
+  touching.insert(touching.end(), near.begin(), near.end());
+  EXPECT_EQ(euclideanClusters(touching, ClusteringParams()).size(), 1u);
+}
+
+TEST(EuclideanClustering, SizeLimitsAndNonFinitePoints) {
+  PointList cloud = scan(sphere(0.04, Eigen::Vector3d(0, 0, 0)));
+  const size_t fruit_points = cloud.size();
+  // A small blob of 20 points far away is below min_size.
+  for (int i = 0; i < 20; ++i) cloud.emplace_back(1.0 + 0.002 * i, 0, 0);
+  cloud.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+  cloud.emplace_back(0, std::numeric_limits<double>::infinity(), 0);
+  ClusteringParams params;
+  auto clusters = euclideanClusters(cloud, params);
+  ASSERT_EQ(clusters.size(), 1u);
+  EXPECT_EQ(clusters[0].size(), fruit_points);
+  params.max_size = static_cast<int>(fruit_points) - 1;
+  EXPECT_TRUE(euclideanClusters(cloud, params).empty());
+  EXPECT_TRUE(euclideanClusters({}, ClusteringParams()).empty());
+}
+
+TEST(SurfaceNormals, SphereNormalsPointToTheCentre) {
+  const Eigen::Vector3d c(0.2, 0.3, 0.4);
+  const PointList pts = scan(sphere(0.04, c), 0.5);
+  NormalParams params;
+  params.max_points = 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) mean += p / pts.size();
+  const SurfaceNormals n = estimateNormals(pts, params, mean);
+  ASSERT_EQ(n.normals.size(), pts.size());
+  EXPECT_GT(n.valid, static_cast<int>(0.9 * pts.size()));
+  int good = 0;
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (n.normals[i].allFinite() && n.normals[i].dot((c - pts[i]).normalized()) > std::cos(0.2)) ++good;
+  EXPECT_GT(good, 0.9 * n.valid);
+}
+
+TEST(SurfaceNormals, DegenerateNeighbourhoodsAreDroppedOneByOne) {
+  PointList pts = scan(sphere(0.04, Eigen::Vector3d::Zero()), 0.5);
+  const size_t n_good = pts.size();
+  pts.emplace_back(1, 1, 1);  // isolated: too few neighbours
+  for (int i = 0; i < 10; ++i) pts.emplace_back(2 + 0.001 * i, 0, 0);  // a line
+  pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+  NormalParams params;
+  params.max_points = 0;
+  const SurfaceNormals n = estimateNormals(pts, params, Eigen::Vector3d::Zero());
+  for (size_t i = n_good; i < pts.size(); ++i) EXPECT_FALSE(n.normals[i].allFinite()) << i;
+  EXPECT_GT(n.valid, static_cast<int>(0.9 * n_good));
+  const Eigen::Vector3d w = estimateFruitCenter(pts, n.normals, 2.5);
+  EXPECT_LT(w.norm(), 0.004);  // the bad points did not spoil the centre
+}
+
+TEST(FruitCenter, HalfSeenSphereCentreFromNormalLines) {
+  const Eigen::Vector3d c(0.5, -0.2, 0.8);
+  const PointList pts = scan(sphere(0.045, c), 0.5, 9);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) mean += p / pts.size();
+  const SurfaceNormals n = estimateNormals(pts, NormalParams(), mean);
+  const Eigen::Vector3d w = estimateFruitCenter(pts, n.normals, 2.5);
+  EXPECT_LT((w - c).norm(), 0.003);
+  EXPECT_GT((mean - c).norm(), 0.015);  // the mean alone would be far off
+  EXPECT_TRUE(checkClusterShape(pts, n.normals).ok);
+}
+
+TEST(FruitCenter, PlanarAndCollinearClustersAreRejectedWithAReason) {
+  PointList plane, line;
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j) plane.emplace_back(0.003 * i, 0.003 * j, 0.0);
+  for (int i = 0; i < 200; ++i) line.emplace_back(0.001 * i, 0.0, 0.0);
+  const SurfaceNormals np = estimateNormals(plane, NormalParams(), Eigen::Vector3d(0, 0, 1));
+  const ClusterShapeCheck cp = checkClusterShape(plane, np.normals);
+  EXPECT_FALSE(cp.ok);
+  EXPECT_NE(cp.reason.find("planar"), std::string::npos) << cp.reason;
+  // The centre stays finite (pulled to the mean) even with parallel normals.
+  EXPECT_TRUE(estimateFruitCenter(plane, np.normals, 2.5).allFinite());
+  const SurfaceNormals nl = estimateNormals(line, NormalParams(), Eigen::Vector3d(0, 0, 1));
+  const ClusterShapeCheck cl = checkClusterShape(line, nl.normals);
+  EXPECT_FALSE(cl.ok);
+  EXPECT_NE(cl.reason.find("collinear"), std::string::npos) << cl.reason;
+}

@@ -1,0 +1,181 @@
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/synthetic_fruit.h>
+#include <gtest/gtest.h>
+
+#include <limits>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+Superellipsoid fruitAt(const Eigen::Vector3d& c, unsigned seed) {
+  std::mt19937 rng(seed);
+  return randomSuperellipsoid(rng, c);
+}
+
+PointList scan(const Superellipsoid& s, double seen, const Eigen::Vector3d& view, unsigned seed) {
+  ScanParams p;
+  p.visible_fraction = seen;
+  p.view_dir = view;
+  p.seed = seed;
+  return scanFruit(SyntheticFruit::fromSuperellipsoid(s), p);
+}
+
+const FruitEstimate* nearest(const std::vector<FruitEstimate>& fruits, const Eigen::Vector3d& c) {
+  const FruitEstimate* best = nullptr;
+  for (const auto& f : fruits)
+    if (!best || (f.center() - c).norm() < (best->center() - c).norm()) best = &f;
+  return best;
+}
+
+}  // namespace
+
+TEST(FruitShapePipeline, FitsEveryFruitOfACloud) {
+  std::vector<Superellipsoid> truth;
+  PointList cloud;
+  for (int i = 0; i < 4; ++i) {
+    truth.push_back(fruitAt(Eigen::Vector3d(0.15 * i, 0.05 * (i % 2), 0.6), 10 + i));
+    const PointList pts = scan(truth.back(), 1.0, Eigen::Vector3d::UnitX(), i);
+    cloud.insert(cloud.end(), pts.begin(), pts.end());
+  }
+  FruitShapePipeline pipeline;
+  const auto& fruits = pipeline.update(cloud);
+  ASSERT_EQ(fruits.size(), 4u);
+  for (const auto& t : truth) {
+    const FruitEstimate* f = nearest(fruits, t.t);
+    ASSERT_TRUE(f->accepted) << f->reason;
+    EXPECT_LT((f->center() - t.t).norm(), 0.002);
+    EXPECT_NEAR(f->volume, t.volume(), 0.04 * t.volume());
+    EXPECT_GT(f->bbox_volume, f->volume);  // the old box estimate is larger than the fruit
+    EXPECT_LT(f->missing_surface.size(), 15u);  // fully seen: hardly anything predicted
+  }
+}
+
+TEST(FruitShapePipeline, TwoFruitsTwoCentimetresApartAreTwoFruits) {
+  Superellipsoid a, b;
+  a.a = a.b = a.c = 0.04;
+  b = a;
+  a.t = Eigen::Vector3d(0, 0, 0.5);
+  b.t = Eigen::Vector3d(0.1, 0, 0.5);  // surfaces 2 cm apart
+  PointList cloud = scan(a, 0.6, Eigen::Vector3d(0, -1, 0.2), 1);
+  const PointList pb = scan(b, 0.6, Eigen::Vector3d(0, -1, 0.2), 2);
+  cloud.insert(cloud.end(), pb.begin(), pb.end());
+  FruitShapePipeline pipeline;
+  const auto& fruits = pipeline.update(cloud);
+  ASSERT_EQ(fruits.size(), 2u);
+  for (const auto* t : {&a, &b}) {
+    const FruitEstimate* f = nearest(fruits, t->t);
+    EXPECT_TRUE(f->accepted) << f->reason;
+    EXPECT_LT((f->center() - t->t).norm(), 0.004);
+  }
+}
+
+TEST(FruitShapePipeline, MissingSurfaceIsTheUnseenSide) {
+  const Superellipsoid truth = fruitAt(Eigen::Vector3d(0.3, 0.3, 0.5), 4);
+  const Eigen::Vector3d view(1, 0, 0);
+  FruitShapePipeline pipeline;
+  const auto& fruits = pipeline.update(scan(truth, 0.5, view, 4));
+  ASSERT_EQ(fruits.size(), 1u);
+  const FruitEstimate& f = fruits[0];
+  ASSERT_TRUE(f.accepted) << f.reason;
+  const int samples = pipeline.params().missing.samples;
+  EXPECT_GT(static_cast<int>(f.missing_surface.size()), samples / 4);
+  EXPECT_LT(static_cast<int>(f.missing_surface.size()), 3 * samples / 4);
+  for (const auto& m : f.missing_surface) {
+    EXPECT_LT((m - truth.t).normalized().dot(view), 0.35);  // behind the rim, never in front
+    EXPECT_LT(truth.radialDistance(m), 0.01);               // and near the true surface
+  }
+}
+
+TEST(FruitShapePipeline, IdsAreStableAndUnchangedFruitsAreNotRefitted) {
+  const Superellipsoid s1 = fruitAt(Eigen::Vector3d(0, 0, 0.5), 21);
+  const Superellipsoid s2 = fruitAt(Eigen::Vector3d(0.2, 0, 0.5), 22);
+  auto cloudOf = [&](double seen1, double seen2) {
+    PointList c = scan(s1, seen1, Eigen::Vector3d(0, 1, 0), 1);
+    const PointList c2 = scan(s2, seen2, Eigen::Vector3d(0, 1, 0), 2);
+    c.insert(c.end(), c2.begin(), c2.end());
+    return c;
+  };
+  FruitShapePipeline pipeline;
+  auto first = pipeline.update(cloudOf(0.5, 0.5));
+  ASSERT_EQ(first.size(), 2u);
+  const int id1 = nearest(first, s1.t)->id, id2 = nearest(first, s2.t)->id;
+  EXPECT_NE(id1, id2);
+  EXPECT_EQ(pipeline.lastStats().fitted, 2);
+
+  // Same cloud again: same ids, nothing refitted.
+  auto second = pipeline.update(cloudOf(0.5, 0.5));
+  EXPECT_EQ(pipeline.lastStats().fitted, 0);
+  for (const auto& f : second) EXPECT_FALSE(f.refitted);
+  EXPECT_EQ(nearest(second, s1.t)->id, id1);
+  EXPECT_EQ(nearest(second, s2.t)->id, id2);
+
+  // Fruit 1 seen more: only it is refitted, from its previous fit; both keep their ids.
+  auto third = pipeline.update(cloudOf(0.9, 0.5));
+  EXPECT_EQ(pipeline.lastStats().fitted, 1);
+  const FruitEstimate* f1 = nearest(third, s1.t);
+  EXPECT_EQ(f1->id, id1);
+  EXPECT_TRUE(f1->refitted);
+  EXPECT_EQ(nearest(third, s2.t)->id, id2);
+  EXPECT_NEAR(f1->volume, s1.volume(), 0.05 * s1.volume());
+
+  // A new fruit gets a new id; a vanished one is gone.
+  PointList c = scan(s1, 0.9, Eigen::Vector3d(0, 1, 0), 1);
+  const Superellipsoid s3 = fruitAt(Eigen::Vector3d(0.5, 0, 0.5), 23);
+  const PointList c3 = scan(s3, 0.7, Eigen::Vector3d(0, 1, 0), 3);
+  c.insert(c.end(), c3.begin(), c3.end());
+  auto fourth = pipeline.update(c);
+  ASSERT_EQ(fourth.size(), 2u);
+  EXPECT_EQ(nearest(fourth, s1.t)->id, id1);
+  const int id3 = nearest(fourth, s3.t)->id;
+  EXPECT_NE(id3, id1);
+  EXPECT_NE(id3, id2);
+}
+
+TEST(FruitShapePipeline, BadInputIsCountedNotFatal) {
+  FruitShapePipeline pipeline;
+  EXPECT_TRUE(pipeline.update({}).empty());
+  EXPECT_EQ(pipeline.lastStats().clusters, 0);
+
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  PointList only_bad(1000, Eigen::Vector3d(nan, 0, 0));
+  only_bad.emplace_back(inf, inf, inf);
+  EXPECT_TRUE(pipeline.update(only_bad).empty());
+  EXPECT_EQ(pipeline.lastStats().non_finite_points, 1001);
+
+  // Bad points mixed into a good cloud are skipped and counted; the fruit is still fitted.
+  const Superellipsoid truth = fruitAt(Eigen::Vector3d(0, 0, 0.5), 5);
+  PointList cloud = scan(truth, 0.6, Eigen::Vector3d(1, 1, 0), 5);
+  for (int i = 0; i < 50; ++i) cloud.insert(cloud.begin() + 7 * i, Eigen::Vector3d(nan, inf, 0));
+  const auto& fruits = pipeline.update(cloud);
+  EXPECT_EQ(pipeline.lastStats().non_finite_points, 50);
+  ASSERT_EQ(fruits.size(), 1u);
+  EXPECT_TRUE(fruits[0].accepted) << fruits[0].reason;
+
+  // A flat patch of 400 points is a cluster but not a fruit: rejected with a reason.
+  PointList plane;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) plane.emplace_back(0.004 * i, 0.004 * j, 1.0);
+  const auto& flat = pipeline.update(plane);
+  ASSERT_EQ(flat.size(), 1u);
+  EXPECT_FALSE(flat[0].accepted);
+  EXPECT_NE(flat[0].reason.find("planar"), std::string::npos) << flat[0].reason;
+  EXPECT_TRUE(flat[0].missing_surface.empty());
+}
+
+TEST(FruitShapePipeline, InvalidParametersAreRefused) {
+  PipelineParams p;
+  p.clustering.tolerance = 0;
+  EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
+  p = PipelineParams();
+  p.clustering.min_size = 200;
+  p.clustering.max_size = 100;
+  EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
+  p = PipelineParams();
+  p.fit.max_e = 0.2;
+  EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
+  p = PipelineParams();
+  p.missing.threshold = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
+}
