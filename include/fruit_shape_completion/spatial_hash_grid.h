@@ -3,11 +3,11 @@
 // equal to the query radius a query visits the 8 cells its sphere overlaps; cheaper to build
 // than a k-d tree and exact for the radius searches of clustering, normals and the
 // missing-surface test. Points are stored cell by cell, so a query reads contiguous memory.
+#include <fruit_shape_completion/flat_hash_map.h>
 #include <fruit_shape_completion/types.h>
 
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -39,7 +39,7 @@ class SpatialHashGrid {
   double cell_;
   double inv_cell_;
   // Cell key -> [begin, end) range into sorted_ / index_.
-  std::unordered_map<std::uint64_t, std::pair<int, int>> cells_;
+  FlatHashMap<std::pair<int, int>> cells_;
   PointList sorted_;         // points grouped by cell
   std::vector<int> index_;   // original index of each sorted point
 };
@@ -53,9 +53,9 @@ bool SpatialHashGrid::visitWithin(const Point& p, double radius, Visit&& visit) 
   for (auto x = static_cast<std::int64_t>(lo.x()); x <= static_cast<std::int64_t>(hi.x()); ++x)
     for (auto y = static_cast<std::int64_t>(lo.y()); y <= static_cast<std::int64_t>(hi.y()); ++y)
       for (auto z = static_cast<std::int64_t>(lo.z()); z <= static_cast<std::int64_t>(hi.z()); ++z) {
-        const auto it = cells_.find(packKey(x, y, z));
-        if (it == cells_.end()) continue;
-        for (int k = it->second.first; k < it->second.second; ++k)
+        const std::pair<int, int>* range = cells_.find(packKey(x, y, z));
+        if (range == nullptr) continue;
+        for (int k = range->first; k < range->second; ++k)
           if ((sorted_[k] - p).squaredNorm() <= r2 && !visit(sorted_[k], index_[k])) return false;
       }
   return true;

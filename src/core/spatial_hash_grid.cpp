@@ -5,7 +5,7 @@
 namespace fruit_shape_completion {
 
 SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
-    : cell_(cell_size), inv_cell_(1.0 / cell_size) {
+    : cell_(cell_size), inv_cell_(1.0 / cell_size), cells_(points.size() / 4 + 1) {
   // Sort point indices by cell key, then record each cell's range: one allocation for all cells.
   std::vector<std::pair<std::uint64_t, int>> keyed;
   keyed.reserve(points.size());
@@ -20,14 +20,13 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
   std::sort(keyed.begin(), keyed.end());
   sorted_.resize(keyed.size());
   index_.resize(keyed.size());
-  cells_.reserve(keyed.size() / 4 + 1);
   for (size_t i = 0; i < keyed.size();) {
     size_t j = i;
     for (; j < keyed.size() && keyed[j].first == keyed[i].first; ++j) {
       index_[j] = keyed[j].second;
       sorted_[j] = points[keyed[j].second];
     }
-    cells_.emplace(keyed[i].first, std::make_pair(static_cast<int>(i), static_cast<int>(j)));
+    *cells_.insert(keyed[i].first).first = std::make_pair(static_cast<int>(i), static_cast<int>(j));
     i = j;
   }
 }

@@ -1,0 +1,112 @@
+#pragma once
+// A sparse TSDF (truncated signed distance) map: voxels grouped in cubic blocks kept in a hash
+// map and created on demand, so memory follows what was seen (the voxblox layout; defaults
+// as the paper: 4 mm voxels, 64 voxels per block side).
+//
+// Not synchronised: one writer at a time (the plugin guards it with a mutex).
+#include <fruit_shape_completion/types.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace fruit_shape_completion {
+
+struct TsdfVoxel {
+  float distance = 0.0f;  // signed distance to the surface [m], positive in front
+  float weight = 0.0f;    // 0: never observed
+};
+
+struct TsdfMapParams {
+  double voxel_size = 0.004;  // [m]
+  int voxels_per_side = 64;   // per block
+  // Blocks are never created beyond this many; points that would need more are dropped and
+  // counted. 1024 blocks of 64^3 voxels are 2 GiB.
+  int max_blocks = 1024;
+  // Optional crop box (map frame): nothing outside it is stored.
+  bool use_crop_box = false;
+  Eigen::Vector3d crop_min = Eigen::Vector3d::Constant(-1e9);
+  Eigen::Vector3d crop_max = Eigen::Vector3d::Constant(1e9);
+  // Throws std::invalid_argument naming the first bad value.
+  void validate() const;
+};
+
+// Integer voxel coordinates in the map (voxel i spans [i, i+1) * voxel_size).
+using VoxelIndex = Eigen::Matrix<std::int64_t, 3, 1>;
+
+struct TsdfBlock {
+  explicit TsdfBlock(const VoxelIndex& origin, int voxels_per_side);
+  VoxelIndex origin;  // global index of the block's first voxel
+  // voxels_per_side^3, x fastest. calloc'd: the OS hands out zero pages on first touch, so
+  // the untouched part of a block (most of it: fruit surfaces are thin) costs no time.
+  std::unique_ptr<TsdfVoxel[], void (*)(void*)> voxels;
+  // Local indices of the voxels with weight > 0. Ascending up to `sorted_count` (readers then
+  // walk the block in memory order); newly observed voxels are appended behind that until
+  // sortObserved() merges them in.
+  std::vector<std::uint32_t> observed;
+  std::size_t sorted_count = 0;
+  void sortObserved();
+
+  // Records the first observation of voxel `idx` (call before giving it weight).
+  void update(std::uint32_t idx, double sdf, double weight, double max_weight) {
+    TsdfVoxel& v = voxels[idx];
+    if (v.weight <= 0.0f) observed.push_back(idx);
+    const double wsum = v.weight + weight;
+    v.distance = static_cast<float>((v.distance * v.weight + sdf * weight) / wsum);
+    v.weight = static_cast<float>(wsum < max_weight ? wsum : max_weight);
+  }
+};
+
+class TsdfMap {
+ public:
+  explicit TsdfMap(const TsdfMapParams& params = TsdfMapParams());
+
+  const TsdfMapParams& params() const { return params_; }
+  double voxelSize() const { return params_.voxel_size; }
+  int voxelsPerSide() const { return params_.voxels_per_side; }
+
+  VoxelIndex voxelIndexOf(const Eigen::Vector3d& p) const;
+  Eigen::Vector3d voxelCenter(const VoxelIndex& v) const;
+  bool insideCropBox(const Eigen::Vector3d& p) const;
+
+  // The voxel at a global index, or nullptr if its block does not exist.
+  const TsdfVoxel* voxel(const VoxelIndex& v) const;
+  // The global index of the first voxel of the block holding voxel v.
+  VoxelIndex blockOriginOf(const VoxelIndex& v) const;
+  // The block with that origin, created if needed; nullptr if max_blocks or the crop box
+  // (the block lies wholly outside it) forbid it.
+  TsdfBlock* blockForUpdate(const VoxelIndex& block_origin);
+  // Sets a voxel (used by load); false if its block cannot be created.
+  bool setVoxel(const VoxelIndex& v, const TsdfVoxel& value);
+
+  std::size_t blockCount() const { return blocks_.size(); }
+  std::size_t blockVoxels() const {
+    const std::size_t n = params_.voxels_per_side;
+    return n * n * n;
+  }
+  std::size_t observedVoxelCount() const;
+  std::size_t memoryBytes() const;
+  void clear();
+
+  template <typename Fn>  // fn(const TsdfBlock&)
+  void forEachBlock(Fn&& fn) const {
+    for (const auto& kv : blocks_) fn(*kv.second);
+  }
+
+  // Binary file: the observed voxels only. load() leaves the map unchanged on error.
+  bool save(const std::string& path, std::string* error) const;
+  bool load(const std::string& path, std::string* error);
+
+ private:
+  std::uint64_t blockKeyOf(const VoxelIndex& block_origin) const;
+
+  TsdfMapParams params_;
+  std::unordered_map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;
+  // One-entry cache: rays touch the same block many times in a row.
+  mutable std::uint64_t cached_key_ = ~0ull;
+  mutable TsdfBlock* cached_block_ = nullptr;
+};
+
+}  // namespace fruit_shape_completion

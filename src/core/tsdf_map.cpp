@@ -1,0 +1,231 @@
+#include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/tsdf_map.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace fruit_shape_completion {
+
+namespace {
+std::int64_t floorDiv(std::int64_t a, std::int64_t b) {
+  std::int64_t q = a / b;
+  if ((a % b != 0) && ((a < 0) != (b < 0))) --q;
+  return q;
+}
+constexpr char kMagic[8] = {'F', 'S', 'C', 'T', 'S', 'D', 'F', '1'};
+}  // namespace
+
+void TsdfMapParams::validate() const {
+  if (!(voxel_size > 0.0) || !std::isfinite(voxel_size))
+    throw std::invalid_argument("tsdf voxel_size must be a finite value > 0");
+  if (voxels_per_side < 1 || voxels_per_side > 512)
+    throw std::invalid_argument("tsdf voxels_per_side must be in 1..512");
+  if (max_blocks < 1) throw std::invalid_argument("tsdf max_blocks must be >= 1");
+  if (use_crop_box && !(crop_min.array() < crop_max.array()).all())
+    throw std::invalid_argument("tsdf crop box must have crop_min < crop_max on every axis");
+}
+
+TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params) { params_.validate(); }
+
+VoxelIndex TsdfMap::voxelIndexOf(const Eigen::Vector3d& p) const {
+  return (p / params_.voxel_size).array().floor().cast<std::int64_t>();
+}
+
+Eigen::Vector3d TsdfMap::voxelCenter(const VoxelIndex& v) const {
+  return (v.cast<double>().array() + 0.5) * params_.voxel_size;
+}
+
+bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
+  return !params_.use_crop_box ||
+         ((p.array() >= params_.crop_min.array()).all() && (p.array() <= params_.crop_max.array()).all());
+}
+
+TsdfBlock::TsdfBlock(const VoxelIndex& o, int n)
+    : origin(o),
+      voxels(static_cast<TsdfVoxel*>(std::calloc(static_cast<std::size_t>(n) * n * n, sizeof(TsdfVoxel))),
+             &std::free) {
+  if (!voxels) throw std::bad_alloc();
+}
+
+void TsdfBlock::sortObserved() {
+  if (sorted_count == observed.size()) return;
+  const auto mid = observed.begin() + static_cast<std::ptrdiff_t>(sorted_count);
+  std::sort(mid, observed.end());
+  std::inplace_merge(observed.begin(), mid, observed.end());
+  sorted_count = observed.size();
+}
+
+VoxelIndex TsdfMap::blockOriginOf(const VoxelIndex& v) const {
+  const std::int64_t n = params_.voxels_per_side;
+  return VoxelIndex(floorDiv(v.x(), n) * n, floorDiv(v.y(), n) * n, floorDiv(v.z(), n) * n);
+}
+
+std::uint64_t TsdfMap::blockKeyOf(const VoxelIndex& o) const {
+  const std::int64_t n = params_.voxels_per_side;
+  return SpatialHashGrid::packKey(o.x() / n, o.y() / n, o.z() / n);
+}
+
+const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
+  const VoxelIndex origin = blockOriginOf(v);
+  const std::uint64_t key = blockKeyOf(origin);
+  const TsdfBlock* block = nullptr;
+  if (key == cached_key_) {
+    block = cached_block_;
+  } else {
+    auto it = blocks_.find(key);
+    if (it == blocks_.end()) return nullptr;
+    block = it->second.get();
+    cached_key_ = key;
+    cached_block_ = it->second.get();
+  }
+  const VoxelIndex l = v - origin;
+  const std::int64_t n = params_.voxels_per_side;
+  return &block->voxels[static_cast<std::size_t>(l.x() + n * (l.y() + n * l.z()))];
+}
+
+TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
+  const std::uint64_t key = blockKeyOf(origin);
+  if (key == cached_key_) return cached_block_;
+  auto it = blocks_.find(key);
+  if (it == blocks_.end()) {
+    if (static_cast<int>(blocks_.size()) >= params_.max_blocks) return nullptr;
+    if (params_.use_crop_box) {
+      const double vs = params_.voxel_size;
+      const Eigen::Vector3d lo = origin.cast<double>() * vs;
+      const Eigen::Vector3d hi = lo + Eigen::Vector3d::Constant(params_.voxels_per_side * vs);
+      if ((hi.array() < params_.crop_min.array()).any() || (lo.array() > params_.crop_max.array()).any())
+        return nullptr;
+    }
+    it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side)).first;
+  }
+  cached_key_ = key;
+  cached_block_ = it->second.get();
+  return cached_block_;
+}
+
+bool TsdfMap::setVoxel(const VoxelIndex& v, const TsdfVoxel& value) {
+  if (!insideCropBox(voxelCenter(v))) return false;
+  const VoxelIndex origin = blockOriginOf(v);
+  TsdfBlock* block = blockForUpdate(origin);
+  if (block == nullptr) return false;
+  const VoxelIndex l = v - origin;
+  const std::int64_t n = params_.voxels_per_side;
+  const auto idx = static_cast<std::uint32_t>(l.x() + n * (l.y() + n * l.z()));
+  if (block->voxels[idx].weight <= 0.0f) block->observed.push_back(idx);
+  block->voxels[idx] = value;
+  return true;
+}
+
+std::size_t TsdfMap::observedVoxelCount() const {
+  std::size_t n = 0;
+  for (const auto& kv : blocks_) n += kv.second->observed.size();
+  return n;
+}
+
+std::size_t TsdfMap::memoryBytes() const {
+  std::size_t bytes = sizeof(*this);
+  for (const auto& kv : blocks_)
+    bytes += sizeof(TsdfBlock) + blockVoxels() * sizeof(TsdfVoxel) +
+             kv.second->observed.capacity() * sizeof(std::uint32_t) + 4 * sizeof(void*);
+  return bytes;
+}
+
+void TsdfMap::clear() {
+  blocks_.clear();
+  cached_key_ = ~0ull;
+  cached_block_ = nullptr;
+}
+
+bool TsdfMap::save(const std::string& path, std::string* error) const {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) {
+    if (error) *error = path + ": cannot open for writing";
+    return false;
+  }
+  auto put = [&out](const void* p, std::size_t n) { out.write(static_cast<const char*>(p), n); };
+  const std::uint32_t version = 1;
+  const std::uint32_t vps = params_.voxels_per_side;
+  const std::uint64_t count = blocks_.size();
+  put(kMagic, 8);
+  put(&version, 4);
+  put(&params_.voxel_size, 8);
+  put(&vps, 4);
+  put(&count, 8);
+  for (const auto& kv : blocks_) {
+    const TsdfBlock& b = *kv.second;
+    const std::int64_t origin[3] = {b.origin.x(), b.origin.y(), b.origin.z()};
+    const std::uint32_t n = b.observed.size();
+    put(origin, sizeof(origin));
+    put(&n, 4);
+    for (std::uint32_t idx : b.observed) {
+      put(&idx, 4);
+      put(&b.voxels[idx].distance, 4);
+      put(&b.voxels[idx].weight, 4);
+    }
+  }
+  if (!out) {
+    if (error) *error = path + ": write error";
+    return false;
+  }
+  return true;
+}
+
+bool TsdfMap::load(const std::string& path, std::string* error) {
+  auto fail = [&](const std::string& what) {
+    if (error) *error = path + ": " + what;
+    return false;
+  };
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fail("cannot open file");
+  auto get = [&in](void* p, std::size_t n) { return static_cast<bool>(in.read(static_cast<char*>(p), n)); };
+  char magic[8];
+  std::uint32_t version = 0, vps = 0;
+  double voxel_size = 0;
+  std::uint64_t count = 0;
+  if (!get(magic, 8) || std::memcmp(magic, kMagic, 8) != 0) return fail("not a TSDF map file (bad magic)");
+  if (!get(&version, 4) || version != 1) return fail("unsupported TSDF map file version");
+  if (!get(&voxel_size, 8) || !get(&vps, 4) || !get(&count, 8)) return fail("truncated header");
+  TsdfMapParams p = params_;
+  p.voxel_size = voxel_size;
+  p.voxels_per_side = static_cast<int>(vps);
+  try {
+    p.validate();
+  } catch (const std::exception& e) {
+    return fail(std::string("bad header: ") + e.what());
+  }
+  if (count > static_cast<std::uint64_t>(p.max_blocks))
+    return fail("file holds more blocks than max_blocks allows");
+  TsdfMap loaded(p);
+  const std::uint64_t voxels = static_cast<std::uint64_t>(vps) * vps * vps;
+  for (std::uint64_t b = 0; b < count; ++b) {
+    std::int64_t origin[3];
+    std::uint32_t n = 0;
+    if (!get(origin, sizeof(origin)) || !get(&n, 4)) return fail("truncated block header");
+    if (n > voxels) return fail("block lists more voxels than it has");
+    for (int k = 0; k < 3; ++k)
+      if (origin[k] % static_cast<std::int64_t>(vps) != 0) return fail("misaligned block origin");
+    for (std::uint32_t i = 0; i < n; ++i) {
+      std::uint32_t idx;
+      TsdfVoxel v;
+      if (!get(&idx, 4) || !get(&v.distance, 4) || !get(&v.weight, 4)) return fail("truncated voxel data");
+      if (idx >= voxels || !std::isfinite(v.distance) || !(v.weight > 0.0f) || !std::isfinite(v.weight))
+        return fail("corrupt voxel data");
+      const VoxelIndex g(origin[0] + idx % vps, origin[1] + (idx / vps) % vps, origin[2] + idx / (vps * vps));
+      if (!loaded.setVoxel(g, v)) return fail("voxel outside the crop box or block limit");
+    }
+  }
+  for (auto& kv : loaded.blocks_) kv.second->sortObserved();
+  blocks_.swap(loaded.blocks_);
+  params_ = p;
+  cached_key_ = ~0ull;
+  cached_block_ = nullptr;
+  return true;
+}
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,145 @@
+#include <fruit_shape_completion/tsdf_surface.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <fstream>
+
+namespace fruit_shape_completion {
+
+namespace {
+
+// Neighbour access that stays inside the block's array when it can (no hash lookup).
+struct BlockView {
+  const TsdfMap& map;
+  const TsdfBlock& block;
+  int n;
+  const TsdfVoxel* at(int lx, int ly, int lz) const {
+    if (lx >= 0 && ly >= 0 && lz >= 0 && lx < n && ly < n && lz < n)
+      return &block.voxels[static_cast<std::size_t>(lx + n * (ly + n * lz))];
+    return map.voxel(block.origin + VoxelIndex(lx, ly, lz));
+  }
+};
+
+bool usable(const TsdfVoxel* v, double min_weight) { return v != nullptr && v->weight >= min_weight; }
+
+}  // namespace
+
+PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams& params) {
+  PointList out;
+  const double vs = map.voxelSize();
+  const float max_d = static_cast<float>(params.max_distance_voxels * vs);
+  const int n = map.voxelsPerSide();
+  map.forEachBlock([&](const TsdfBlock& block) {
+    const BlockView view{map, block, n};
+    for (std::uint32_t idx : block.observed) {
+      const TsdfVoxel& v = block.voxels[idx];
+      if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) continue;
+      const int lx = idx % n, ly = (idx / n) % n, lz = idx / (n * n);
+      Eigen::Vector3d c = map.voxelCenter(block.origin + VoxelIndex(lx, ly, lz));
+      if (params.project_to_zero_crossing) {
+        Eigen::Vector3d g;
+        bool ok = true;
+        for (int k = 0; k < 3 && ok; ++k) {
+          const int dx = k == 0, dy = k == 1, dz = k == 2;
+          const TsdfVoxel* plus = view.at(lx + dx, ly + dy, lz + dz);
+          const TsdfVoxel* minus = view.at(lx - dx, ly - dy, lz - dz);
+          const bool p = usable(plus, params.min_weight), m = usable(minus, params.min_weight);
+          if (p && m) g[k] = (plus->distance - minus->distance) / (2.0 * vs);
+          else if (p) g[k] = (plus->distance - v.distance) / vs;
+          else if (m) g[k] = (v.distance - minus->distance) / vs;
+          else ok = false;
+        }
+        const double gn = g.norm();
+        // A distance field has |gradient| ~ 1; far from that the neighbourhood is unreliable.
+        if (ok && gn > 0.5 && gn < 2.0) c -= (v.distance / gn) * (g / gn);
+      }
+      out.push_back(c);
+    }
+  });
+  return out;
+}
+
+TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
+  TriangleMesh mesh;
+  const int n = map.voxelsPerSide();
+  const double vs = map.voxelSize();
+  const float skip = static_cast<float>(std::sqrt(3.0) * vs);
+  // Six tetrahedra around the cube diagonal 0-7; corner bit 1: +x, 2: +y, 4: +z.
+  static const int kTets[6][4] = {{0, 7, 1, 3}, {0, 7, 3, 2}, {0, 7, 2, 6},
+                                  {0, 7, 6, 4}, {0, 7, 4, 5}, {0, 7, 5, 1}};
+  map.forEachBlock([&](const TsdfBlock& block) {
+    const BlockView view{map, block, n};
+    for (std::uint32_t idx : block.observed) {
+      const TsdfVoxel& v0 = block.voxels[idx];
+      if (v0.weight < min_weight || std::abs(v0.distance) > skip) continue;
+      const int lx = idx % n, ly = (idx / n) % n, lz = idx / (n * n);
+      double d[8];
+      Eigen::Vector3d p[8];
+      bool ok = true, pos = false, neg = false;
+      for (int c = 0; c < 8 && ok; ++c) {
+        const int cx = c & 1, cy = (c >> 1) & 1, cz = (c >> 2) & 1;
+        const TsdfVoxel* v = view.at(lx + cx, ly + cy, lz + cz);
+        if (!usable(v, min_weight)) {
+          ok = false;
+          break;
+        }
+        d[c] = v->distance;
+        (d[c] < 0 ? neg : pos) = true;
+        p[c] = map.voxelCenter(block.origin + VoxelIndex(lx + cx, ly + cy, lz + cz));
+      }
+      if (!ok || !pos || !neg) continue;
+      for (const auto& tet : kTets) {
+        int inside[4], outside[4], ni = 0, no = 0;
+        for (int k : tet) (d[k] < 0 ? inside[ni++] : outside[no++]) = k;
+        if (ni == 0 || no == 0) continue;
+        auto cross = [&](int a, int b) {
+          const double t = d[a] / (d[a] - d[b]);
+          return Eigen::Vector3d(p[a] + t * (p[b] - p[a]));
+        };
+        Eigen::Vector3d in_c = Eigen::Vector3d::Zero(), out_c = Eigen::Vector3d::Zero();
+        for (int i = 0; i < ni; ++i) in_c += p[inside[i]] / ni;
+        for (int i = 0; i < no; ++i) out_c += p[outside[i]] / no;
+        const Eigen::Vector3d outward = out_c - in_c;
+        auto emit = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+          const int base = static_cast<int>(mesh.vertices.size());
+          const bool flip = (b - a).cross(c - a).dot(outward) < 0;
+          mesh.vertices.push_back(a.cast<float>());
+          mesh.vertices.push_back((flip ? c : b).cast<float>());
+          mesh.vertices.push_back((flip ? b : c).cast<float>());
+          mesh.triangles.emplace_back(base, base + 1, base + 2);
+        };
+        if (ni == 1 || no == 1) {
+          const int lone = ni == 1 ? inside[0] : outside[0];
+          const int* others = ni == 1 ? outside : inside;
+          emit(cross(lone, others[0]), cross(lone, others[1]), cross(lone, others[2]));
+        } else {  // 2 and 2: a quad
+          const Eigen::Vector3d q0 = cross(inside[0], outside[0]), q1 = cross(inside[0], outside[1]),
+                                q2 = cross(inside[1], outside[1]), q3 = cross(inside[1], outside[0]);
+          emit(q0, q1, q2);
+          emit(q0, q2, q3);
+        }
+      }
+    }
+  });
+  return mesh;
+}
+
+bool TriangleMesh::writePly(const std::string& path, std::string* error) const {
+  std::ofstream out(path);
+  if (!out) {
+    if (error) *error = path + ": cannot open for writing";
+    return false;
+  }
+  out << "ply\nformat ascii 1.0\nelement vertex " << vertices.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << triangles.size()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const auto& v : vertices) out << v.x() << ' ' << v.y() << ' ' << v.z() << '\n';
+  for (const auto& t : triangles) out << "3 " << t.x() << ' ' << t.y() << ' ' << t.z() << '\n';
+  if (!out) {
+    if (error) *error = path + ": write error";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,110 @@
+// TSDF map benchmarks. Run: scripts/run.sh bench --benchmark_filter=Tsdf --benchmark_format=json
+#include <benchmark/benchmark.h>
+#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/tsdf_integrator.h>
+#include <fruit_shape_completion/tsdf_surface.h>
+
+#include <random>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+// A cluster of fruit-sized superellipsoids around `center`.
+AnalyticScene fruitCluster(const Eigen::Vector3d& center, int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1), r(0.03, 0.045), e(0.5, 0.9);
+  AnalyticScene scene;
+  while (static_cast<int>(scene.shapes.size()) < n) {
+    Superellipsoid s;
+    s.a = r(rng); s.b = r(rng); s.c = r(rng); s.e1 = e(rng); s.e2 = e(rng);
+    s.rpy = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    s.t = center + Eigen::Vector3d(0.12 * u(rng), 0.12 * u(rng), 0.12 * u(rng));
+    bool overlaps = false;
+    for (const auto& o : scene.shapes) overlaps = overlaps || (o.t - s.t).norm() < 0.11;
+    if (!overlaps) scene.shapes.push_back(s);
+  }
+  return scene;
+}
+
+PointList view(const AnalyticScene& scene, const Eigen::Vector3d& target, const Eigen::Vector3d& dir,
+               double dist, Eigen::Vector3d* origin) {
+  const PinholeCamera cam = PinholeCamera::lookingAt(target + dist * dir.normalized(), target);
+  *origin = cam.position;
+  return renderDepth(scene, cam, 0.0015).points;  // ~0.25 mm noise at 0.4 m
+}
+
+}  // namespace
+
+// One masked fruit frame (only fruit pixels, 640 x 480, fruits at 0.3-0.5 m) into a map that
+// already holds 20 views of the same fruits.
+static void BM_TsdfIntegrateFruitFrame(benchmark::State& state) {
+  const Eigen::Vector3d center(0.0, 0.6, 0.5);
+  const AnalyticScene scene = fruitCluster(center, 6, 7);
+  TsdfMap map;
+  const TsdfIntegrator integ;
+  const PointList dirs = fibonacciSphere(21);
+  Eigen::Vector3d origin;
+  for (int i = 0; i < 20; ++i) integ.integrate(map, view(scene, center, dirs[i], 0.4, &origin), origin);
+  const PointList frame = view(scene, center, dirs[20], 0.4, &origin);
+  for (auto _ : state) benchmark::DoNotOptimize(integ.integrate(map, frame, origin).rays);
+  state.counters["points"] = static_cast<double>(frame.size());
+  state.counters["blocks"] = static_cast<double>(map.blockCount());
+}
+BENCHMARK(BM_TsdfIntegrateFruitFrame)->Unit(benchmark::kMillisecond);
+
+// A full 640 x 480 frame (two fruit clusters and a back wall; 0.3-1.5 m) at 4 mm.
+// Arg 1: default integrator (outlier removal and incidence-limited band, which need a
+// neighbourhood pass over all merged points); Arg 0: both off.
+static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
+  AnalyticScene scene = fruitCluster(Eigen::Vector3d(0.0, 0.5, 0.5), 6, 3);
+  const AnalyticScene far = fruitCluster(Eigen::Vector3d(0.1, 1.0, 0.5), 6, 4);
+  scene.shapes.insert(scene.shapes.end(), far.shapes.begin(), far.shapes.end());
+  scene.planes.push_back({Eigen::Vector3d(0, 1.5, 0), Eigen::Vector3d(0, -1, 0)});
+  const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(0, 0, 0.5), Eigen::Vector3d(0, 1, 0.5));
+  const PointList frame = renderDepth(scene, cam, 0.0015).points;
+  TsdfIntegratorParams params;
+  params.remove_outliers = params.incidence_limited_back_band = state.range(0) != 0;
+  const TsdfIntegrator integ(params);
+  std::size_t rays = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    TsdfMap map;
+    state.ResumeTiming();
+    rays = integ.integrate(map, frame, cam.position).rays;
+  }
+  state.counters["points"] = static_cast<double>(frame.size());
+  state.counters["rays"] = static_cast<double>(rays);
+}
+BENCHMARK(BM_TsdfIntegrateFullFrame)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
+
+// Surface extraction from a map holding 50 fruits, each cluster of 5 seen from 6 directions.
+static void BM_TsdfExtractSurface(benchmark::State& state) {
+  TsdfMap map;
+  TsdfIntegratorParams params;
+  const TsdfIntegrator integ(params);
+  const PointList dirs = fibonacciSphere(6);
+  for (int c = 0; c < 10; ++c) {  // 10 clusters of 5 fruits along a 3 m row
+    const Eigen::Vector3d center(0.3 * c, 0.6, 0.5);
+    const AnalyticScene scene = fruitCluster(center, 5, 100 + c);
+    Eigen::Vector3d origin;
+    for (const auto& d : dirs) {
+      const PinholeCamera cam = PinholeCamera::lookingAt(center + 0.4 * d, center, 320, 240);
+      integ.integrate(map, renderDepth(scene, cam).points, cam.position);
+    }
+  }
+  std::size_t n = 0;
+  SurfaceExtractionParams extraction;
+  extraction.project_to_zero_crossing = state.range(0) != 0;
+  for (auto _ : state) {
+    const PointList surface = extractSurfacePoints(map, extraction);
+    n = surface.size();
+    benchmark::DoNotOptimize(surface.data());
+  }
+  state.counters["surface_points"] = static_cast<double>(n);
+  state.counters["blocks"] = static_cast<double>(map.blockCount());
+  state.counters["observed_voxels"] = static_cast<double>(map.observedVoxelCount());
+  state.counters["map_MiB"] = map.memoryBytes() / 1048576.0;
+}
+// Arg 0: voxel centres (as voxblox), 1: projected onto the zero crossing.
+BENCHMARK(BM_TsdfExtractSurface)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);

@@ -1,0 +1,318 @@
+#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/euclidean_clustering.h>
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/tsdf_integrator.h>
+#include <fruit_shape_completion/tsdf_surface.h>
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <unistd.h>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+Superellipsoid sphere(double r, const Eigen::Vector3d& c) {
+  Superellipsoid s;
+  s.a = s.b = s.c = r;
+  s.e1 = s.e2 = 1.0;
+  s.t = c;
+  return s;
+}
+
+// A small camera (160 x 120, same 80 degree field of view) keeps the tests quick; the map
+// sees ~1.5 mm pixel spacing at 0.35 m, several points per 4 mm voxel, as a VGA camera at 0.7 m.
+PinholeCamera cameraAround(const Eigen::Vector3d& target, const Eigen::Vector3d& dir, double dist) {
+  return PinholeCamera::lookingAt(target + dist * dir.normalized(), target, 160, 120);
+}
+
+// Integrates views of `scene` from `n` directions around `target` (Fibonacci sphere, or a ring
+// in the horizontal plane when ring is true). Only points of shapes (not planes) are integrated,
+// as a fruit mask would cut them out.
+void integrateViews(TsdfMap& map, const TsdfIntegrator& integ, const AnalyticScene& scene,
+                    const Eigen::Vector3d& target, int n, double noise = 0.0, unsigned seed = 1) {
+  const PointList dirs = fibonacciSphere(n);
+  for (int i = 0; i < n; ++i) {
+    const PinholeCamera cam = cameraAround(target, dirs[i], 0.35);
+    const DepthScan scan = renderDepth(scene, cam, noise, seed + i);
+    PointList fruit;
+    for (std::size_t k = 0; k < scan.points.size(); ++k)
+      if (scan.labels[k] < static_cast<int>(scene.shapes.size())) fruit.push_back(scan.points[k]);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = cam.rotation;
+    pose.translation() = cam.position;
+    const IntegrationReport r = integ.integrate(map, fruit, pose);
+    ASSERT_TRUE(r.ok()) << r.error;
+  }
+}
+
+double coverage(const PointList& surface, const Superellipsoid& truth, double radius) {
+  const SpatialHashGrid grid(surface, radius);
+  const PointList samples = truth.sampleSurface(3000);
+  int covered = 0;
+  for (const auto& s : samples) covered += grid.anyWithin(s, radius);
+  return static_cast<double>(covered) / samples.size();
+}
+
+double rmsError(const PointList& pts, const Superellipsoid& truth) {
+  double sum = 0;
+  for (const auto& p : pts) sum += std::pow(truth.radialDistance(p), 2);
+  return std::sqrt(sum / pts.size());
+}
+
+}  // namespace
+
+TEST(TsdfMap, SphereFromAllAroundIsAccurateCompleteAndFitsItsVolume) {
+  const Superellipsoid truth = sphere(0.04, Eigen::Vector3d(0.1, 0.2, 0.5));
+  AnalyticScene scene;
+  scene.shapes.push_back(truth);
+  TsdfMap map;
+  const TsdfIntegrator integ;
+  integrateViews(map, integ, scene, truth.t, 14);
+  const PointList surface = extractSurfacePoints(map);
+  ASSERT_GT(surface.size(), 500u);
+  double worst = 0;
+  for (const auto& p : surface) worst = std::max(worst, std::abs((p - truth.t).norm() - truth.a));
+  EXPECT_LT(worst, map.voxelSize());
+  const double cov = coverage(surface, truth, map.voxelSize());
+  EXPECT_GE(cov, 0.95);
+  FruitShapePipeline pipeline;
+  const auto& fruits = pipeline.update(surface);
+  ASSERT_EQ(fruits.size(), 1u);
+  ASSERT_TRUE(fruits[0].accepted) << fruits[0].reason;
+  EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.03 * truth.volume());
+  std::printf("[ report   ] sphere: %zu surface points, worst error %.2f mm, rms %.2f mm, coverage "
+              "%.3f, volume accuracy %.4f\n", surface.size(), worst * 1000,
+              rmsError(surface, truth) * 1000, cov, 1 - std::abs(fruits[0].volume - truth.volume()) / truth.volume());
+}
+
+TEST(TsdfMap, PosedSuperellipsoidFromAllAround) {
+  Superellipsoid truth;
+  truth.a = 0.035; truth.b = 0.045; truth.c = 0.05; truth.e1 = 0.6; truth.e2 = 0.8;
+  truth.t = Eigen::Vector3d(-0.2, 0.4, 0.6);
+  truth.rpy = Eigen::Vector3d(0.4, -0.3, 1.1);
+  AnalyticScene scene;
+  scene.shapes.push_back(truth);
+  TsdfMap map;
+  integrateViews(map, TsdfIntegrator(), scene, truth.t, 14);
+  const PointList surface = extractSurfacePoints(map);
+  double worst = 0;
+  for (const auto& p : surface) worst = std::max(worst, truth.radialDistance(p));
+  EXPECT_LT(worst, map.voxelSize());
+  const double cov = coverage(surface, truth, map.voxelSize());
+  EXPECT_GE(cov, 0.95);
+  FruitShapePipeline pipeline;
+  const auto& fruits = pipeline.update(surface);
+  ASSERT_EQ(fruits.size(), 1u);
+  ASSERT_TRUE(fruits[0].accepted) << fruits[0].reason;
+  EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.03 * truth.volume());
+  EXPECT_LT((fruits[0].center() - truth.t).norm(), 0.002);
+  std::printf("[ report   ] superellipsoid: worst error %.2f mm, rms %.2f mm, coverage %.3f, volume "
+              "accuracy %.4f\n", worst * 1000, rmsError(surface, truth) * 1000, cov,
+              1 - std::abs(fruits[0].volume - truth.volume()) / truth.volume());
+  // Projected onto the zero crossing: also within a voxel, and with a smaller RMS error.
+  SurfaceExtractionParams projected;
+  projected.project_to_zero_crossing = true;
+  const PointList proj = extractSurfacePoints(map, projected);
+  double worst_proj = 0;
+  for (const auto& p : proj) worst_proj = std::max(worst_proj, truth.radialDistance(p));
+  EXPECT_LT(worst_proj, map.voxelSize());
+  EXPECT_LT(rmsError(proj, truth), 0.7 * rmsError(surface, truth));
+}
+
+TEST(TsdfMap, TheSameViewTwiceDoesNotMoveTheSurface) {
+  const Superellipsoid truth = sphere(0.04, Eigen::Vector3d(0, 0, 0.5));
+  AnalyticScene scene;
+  scene.shapes.push_back(truth);
+  TsdfMap map;
+  const TsdfIntegrator integ;
+  integrateViews(map, integ, scene, truth.t, 1);
+  const PointList once = extractSurfacePoints(map);
+  integrateViews(map, integ, scene, truth.t, 1);
+  const PointList twice = extractSurfacePoints(map);
+  ASSERT_EQ(once.size(), twice.size());
+  double moved = 0;
+  for (std::size_t i = 0; i < once.size(); ++i) moved = std::max(moved, (once[i] - twice[i]).norm());
+  EXPECT_LT(moved, 1e-6);
+}
+
+TEST(TsdfMap, NoisyViewsAverageOut) {
+  const Superellipsoid truth = sphere(0.04, Eigen::Vector3d(0, 0, 0.5));
+  AnalyticScene scene;
+  scene.shapes.push_back(truth);
+  const double noise = 0.02;  // 2.5 mm at 0.35 m
+  TsdfIntegratorParams params;
+  params.remove_outliers = false;
+  const TsdfIntegrator integ(params);
+  const PointList dir = {Eigen::Vector3d(1, 0.2, 0.3)};
+  auto viewOnce = [&](TsdfMap& map, unsigned seed) {
+    const PinholeCamera cam = cameraAround(truth.t, dir[0], 0.35);
+    const DepthScan scan = renderDepth(scene, cam, noise, seed);
+    ASSERT_TRUE(integ.integrate(map, scan.points, cam.position).ok());
+  };
+  TsdfMap exact, single, ten;
+  {
+    const PinholeCamera cam = cameraAround(truth.t, dir[0], 0.35);
+    ASSERT_TRUE(integ.integrate(exact, renderDepth(scene, cam).points, cam.position).ok());
+  }
+  viewOnce(single, 100);
+  for (unsigned s = 0; s < 10; ++s) viewOnce(ten, 200 + s);
+  // The noise-free view has an error of its own (voxels at the silhouette); the noise adds
+  // variance on top, and ten views must remove most of that added variance (1/10 ideally).
+  // Measured on the zero crossing (projected), not on voxel centres, whose 4 mm quantisation
+  // would hide the noise.
+  SurfaceExtractionParams zero;
+  zero.project_to_zero_crossing = true;
+  const double e0 = rmsError(extractSurfacePoints(exact, zero), truth);
+  const double e1 = rmsError(extractSurfacePoints(single, zero), truth);
+  const double e10 = rmsError(extractSurfacePoints(ten, zero), truth);
+  std::printf("[ report   ] surface rms error: noise-free view %.2f mm, 1 noisy view %.2f mm, 10 noisy "
+              "views %.2f mm\n", e0 * 1000, e1 * 1000, e10 * 1000);
+  EXPECT_GT(e1, 1.5 * e0);  // the noise matters
+  EXPECT_LT(e10 * e10 - e0 * e0, 0.3 * (e1 * e1 - e0 * e0));
+}
+
+TEST(TsdfMap, TwoFruitsOneAndAHalfCentimetresApartStayTwoSurfaces) {
+  AnalyticScene scene;
+  scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0, 0, 0.5)));
+  scene.shapes.push_back(sphere(0.035, Eigen::Vector3d(0.09, 0, 0.5)));  // gap 1.5 cm
+  TsdfMap map;
+  integrateViews(map, TsdfIntegrator(), scene, Eigen::Vector3d(0.045, 0, 0.5), 14);
+  const PointList surface = extractSurfacePoints(map);
+  const auto clusters = euclideanClusters(surface, ClusteringParams());
+  ASSERT_EQ(clusters.size(), 2u);
+  for (const auto& p : surface) {
+    const double d0 = std::abs((p - scene.shapes[0].t).norm() - 0.04);
+    const double d1 = std::abs((p - scene.shapes[1].t).norm() - 0.035);
+    EXPECT_LT(std::min(d0, d1), map.voxelSize());  // nothing glued in the gap
+  }
+}
+
+TEST(TsdfMap, MeshLiesOnTheSurfaceAndFacesOutward) {
+  const Superellipsoid truth = sphere(0.04, Eigen::Vector3d(0.05, 0.05, 0.5));
+  AnalyticScene scene;
+  scene.shapes.push_back(truth);
+  TsdfMap map;
+  integrateViews(map, TsdfIntegrator(), scene, truth.t, 14);
+  const TriangleMesh mesh = extractSurfaceMesh(map);
+  ASSERT_GT(mesh.triangles.size(), 1000u);
+  int outward = 0;
+  double worst = 0;
+  for (const auto& t : mesh.triangles) {
+    const Eigen::Vector3d a = mesh.vertices[t.x()].cast<double>(), b = mesh.vertices[t.y()].cast<double>(),
+                          c = mesh.vertices[t.z()].cast<double>();
+    outward += (b - a).cross(c - a).dot((a + b + c) / 3 - truth.t) > 0;
+    for (const auto* v : {&a, &b, &c}) worst = std::max(worst, std::abs((*v - truth.t).norm() - truth.a));
+  }
+  EXPECT_LT(worst, map.voxelSize());
+  EXPECT_GT(outward, 0.99 * mesh.triangles.size());
+  const std::string path = "/tmp/fsc_mesh_" + std::to_string(::getpid()) + ".ply";
+  std::string err;
+  EXPECT_TRUE(mesh.writePly(path, &err)) << err;
+  std::remove(path.c_str());
+}
+
+TEST(TsdfMap, SaveAndLoadRestoreTheMapAndRefuseBrokenFiles) {
+  const Superellipsoid truth = sphere(0.04, Eigen::Vector3d(-0.3, 0.1, 0.5));
+  AnalyticScene scene;
+  scene.shapes.push_back(truth);
+  TsdfMap map;
+  integrateViews(map, TsdfIntegrator(), scene, truth.t, 3);
+  const std::string path = "/tmp/fsc_map_" + std::to_string(::getpid()) + ".tsdf";
+  std::string err;
+  ASSERT_TRUE(map.save(path, &err)) << err;
+  TsdfMap loaded;
+  ASSERT_TRUE(loaded.load(path, &err)) << err;
+  EXPECT_EQ(loaded.blockCount(), map.blockCount());
+  EXPECT_EQ(loaded.observedVoxelCount(), map.observedVoxelCount());
+  const PointList a = extractSurfacePoints(map), b = extractSurfacePoints(loaded);
+  EXPECT_EQ(a.size(), b.size());
+  EXPECT_LT(std::abs(rmsError(a, truth) - rmsError(b, truth)), 1e-9);
+  // A truncated file and a foreign file: refused, the map keeps what it had.
+  {
+    std::ifstream in(path, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(path, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  const std::size_t before = loaded.observedVoxelCount();
+  EXPECT_FALSE(loaded.load(path, &err));
+  EXPECT_NE(err.find("truncated"), std::string::npos) << err;
+  std::ofstream(path) << "hello";
+  EXPECT_FALSE(loaded.load(path, &err));
+  EXPECT_NE(err.find("magic"), std::string::npos) << err;
+  EXPECT_EQ(loaded.observedVoxelCount(), before);
+  std::remove(path.c_str());
+}
+
+TEST(TsdfMap, MemoryCropBoxBlockLimitAndReset) {
+  AnalyticScene scene;
+  scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0, 0, 0.5)));
+  scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0.5, 0, 0.5)));
+  TsdfMapParams crop;
+  crop.use_crop_box = true;
+  crop.crop_min = Eigen::Vector3d(-0.2, -0.2, 0.2);
+  crop.crop_max = Eigen::Vector3d(0.2, 0.2, 0.8);
+  TsdfMap cropped(crop), full;
+  integrateViews(cropped, TsdfIntegrator(), scene, Eigen::Vector3d(0.25, 0, 0.5), 6);
+  integrateViews(full, TsdfIntegrator(), scene, Eigen::Vector3d(0.25, 0, 0.5), 6);
+  for (const auto& p : extractSurfacePoints(cropped)) EXPECT_LT(p.x(), 0.2 + 1e-9);
+  EXPECT_LT(cropped.memoryBytes(), full.memoryBytes());
+  EXPECT_GE(full.memoryBytes(), full.blockCount() * 64 * 64 * 64 * sizeof(TsdfVoxel));
+  TsdfMapParams limited;
+  limited.max_blocks = 1;
+  TsdfMap small(limited);
+  integrateViews(small, TsdfIntegrator(), scene, Eigen::Vector3d(0.25, 0, 0.5), 2);
+  EXPECT_EQ(small.blockCount(), 1u);
+  full.clear();
+  EXPECT_EQ(full.blockCount(), 0u);
+  EXPECT_TRUE(extractSurfacePoints(full).empty());
+}
+
+TEST(TsdfMap, BadInputIsRefusedWithAMessageAndTheMapKept) {
+  const Superellipsoid truth = sphere(0.04, Eigen::Vector3d(0, 0, 0.5));
+  AnalyticScene scene;
+  scene.shapes.push_back(truth);
+  TsdfMap map;
+  const TsdfIntegrator integ;
+  integrateViews(map, integ, scene, truth.t, 2);
+  const std::size_t observed = map.observedVoxelCount();
+  const PointList surface = extractSurfacePoints(map);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d origin(0.4, 0, 0.5);
+
+  IntegrationReport r = integ.integrate(map, {}, origin);
+  EXPECT_FALSE(r.ok());
+  EXPECT_NE(r.error.find("empty"), std::string::npos);
+  r = integ.integrate(map, surface, Eigen::Vector3d(nan, 0, 0));
+  EXPECT_FALSE(r.ok());
+  EXPECT_NE(r.error.find("not finite"), std::string::npos);
+  Eigen::Isometry3d bad_pose = Eigen::Isometry3d::Identity();
+  bad_pose.linear()(0, 0) = nan;
+  EXPECT_FALSE(integ.integrate(map, surface, bad_pose).ok());
+  PointList huge(2000001, Eigen::Vector3d(0, 0, 0.5));
+  r = integ.integrate(map, huge, origin);
+  EXPECT_FALSE(r.ok());
+  EXPECT_NE(r.error.find("max_points"), std::string::npos) << r.error;
+  huge.clear();
+  huge.shrink_to_fit();
+  // Only bad points: all skipped and counted, with a warning.
+  const PointList bad = {Eigen::Vector3d(nan, 0, 0), Eigen::Vector3d(0, inf, 0), origin,
+                         origin + Eigen::Vector3d(0, 0, 1e-4), origin + Eigen::Vector3d(10, 0, 0)};
+  r = integ.integrate(map, bad, origin);
+  EXPECT_TRUE(r.ok());
+  EXPECT_EQ(r.non_finite, 2u);
+  EXPECT_EQ(r.out_of_range, 3u);
+  EXPECT_EQ(r.rays, 0u);
+  EXPECT_FALSE(r.warning.empty());
+  EXPECT_EQ(map.observedVoxelCount(), observed);
+  // Behind the sensor: a camera at the origin looking along +x sees nothing at x < 0.
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;  // optical z along world +x
+  pose.translation() = Eigen::Vector3d(0.5, 0, 0.5);
+  r = integ.integrate(map, {Eigen::Vector3d(0.1, 0, 0.5), Eigen::Vector3d(0.2, 0.01, 0.5)}, pose);
+  EXPECT_EQ(r.out_of_range, 2u);
+  EXPECT_EQ(map.observedVoxelCount(), observed);
+}
