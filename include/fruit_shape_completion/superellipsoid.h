@@ -21,6 +21,8 @@ struct Superellipsoid {
   Eigen::Vector3d t = Eigen::Vector3d::Zero();    // centre [m]
   Eigen::Vector3d rpy = Eigen::Vector3d::Zero();  // roll, pitch, yaw [rad]
 
+  static Superellipsoid sphere(double radius, const Eigen::Vector3d& center);
+
   Eigen::Matrix3d rotation() const;
   Eigen::Vector3d toLocal(const Eigen::Vector3d& p_world) const;
   Eigen::Vector3d toWorld(const Eigen::Vector3d& p_local) const;

@@ -5,6 +5,14 @@
 
 namespace fruit_shape_completion {
 
+Superellipsoid Superellipsoid::sphere(double radius, const Eigen::Vector3d& center) {
+  Superellipsoid s;
+  s.a = s.b = s.c = radius;
+  s.e1 = s.e2 = 1.0;
+  s.t = center;
+  return s;
+}
+
 Eigen::Matrix3d Superellipsoid::rotation() const {
   double r[9];
   rpyToRotation(rpy.data(), r);

@@ -10,13 +10,7 @@
 using namespace fruit_shape_completion;
 
 namespace {
-Superellipsoid sphere(double r, const Eigen::Vector3d& c) {
-  Superellipsoid s;
-  s.a = s.b = s.c = r;
-  s.e1 = s.e2 = 1.0;
-  s.t = c;
-  return s;
-}
+Superellipsoid sphere(double r, const Eigen::Vector3d& c) { return Superellipsoid::sphere(r, c); }
 PointList scan(const Superellipsoid& s, double seen = 1.0, unsigned seed = 1) {
   ScanParams p;
   p.visible_fraction = seen;
