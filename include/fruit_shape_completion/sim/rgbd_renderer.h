@@ -1,0 +1,59 @@
+#pragma once
+// A simulated RGB-D camera: Embree ray casting of a scene's triangles through a pinhole
+// camera (640x480, 80 degree horizontal field of view, 0.15-3 m by default), colour from the
+// material with simple shading, per-pixel ground-truth labels, and an optional depth noise
+// model of a structured-light sensor.
+#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/scene.h>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace sim {
+
+struct DepthNoise {
+  bool enabled = true;
+  // Axial noise sigma(z) = base + quad * (z - ref)^2 [m] (Nguyen et al. 2012, Kinect).
+  double base = 0.0012, quad = 0.0019, ref = 0.4;
+  // Pixels seen at more than this angle from the surface normal return no depth.
+  double max_incidence_deg = 80.0;
+  std::uint32_t seed = 1;
+};
+
+struct RgbdFrame {
+  PinholeCamera camera;
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> rgb;  // 3 bytes per pixel, row-major
+  std::vector<float> depth;       // along the optical axis [m]; NaN where invalid
+  std::vector<int> material;      // per pixel: material index of the hit, -1 for none
+  std::vector<int> fruit;         // per pixel: ground-truth fruit id, -1 for none
+};
+
+struct FrameClouds {
+  PointList fruit;  // masked pixels with valid depth, world frame
+  PointList full;   // all pixels with valid depth, world frame
+};
+
+class RgbdRenderer {
+ public:
+  // `triangle_fruit`: per scene triangle, the fruit id (computeFruitTruth) or -1; may be empty.
+  RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit);
+  ~RgbdRenderer();
+  RgbdRenderer(const RgbdRenderer&) = delete;
+  RgbdRenderer& operator=(const RgbdRenderer&) = delete;
+
+  // Renders one frame; `threads` rows-interleaved worker threads (1 or more).
+  RgbdFrame render(const PinholeCamera& camera, const DepthNoise& noise = DepthNoise(), int threads = 2) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Back-projects a frame's valid depth pixels: all of them, and those where mask is non-zero.
+FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask);
+
+}  // namespace sim
+}  // namespace fruit_shape_completion

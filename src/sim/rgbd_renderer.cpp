@@ -1,0 +1,164 @@
+#include <fruit_shape_completion/sim/rgbd_renderer.h>
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <thread>
+
+namespace fruit_shape_completion {
+namespace sim {
+
+struct RgbdRenderer::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  std::vector<int> triangle_material;
+  std::vector<int> triangle_fruit;
+  std::vector<std::array<std::uint8_t, 3>> colors;
+};
+
+RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit) : impl_(new Impl) {
+  impl_->device = rtcNewDevice("threads=1");
+  if (impl_->device == nullptr) throw std::runtime_error("embree: cannot create a device");
+  impl_->scene = rtcNewScene(impl_->device);
+  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+  if (!scene.triangles.empty()) {
+    RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), scene.vertices.size()));
+    for (std::size_t i = 0; i < scene.vertices.size(); ++i)
+      for (int k = 0; k < 3; ++k) v[3 * i + k] = scene.vertices[i][k];
+    auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                               3 * sizeof(unsigned), scene.triangles.size()));
+    for (std::size_t i = 0; i < scene.triangles.size(); ++i)
+      for (int k = 0; k < 3; ++k) idx[3 * i + k] = static_cast<unsigned>(scene.triangles[i][k]);
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(impl_->scene, geom);
+    rtcReleaseGeometry(geom);
+  }
+  rtcCommitScene(impl_->scene);
+  impl_->triangle_material = scene.triangle_material;
+  impl_->triangle_fruit = std::move(triangle_fruit);
+  impl_->triangle_fruit.resize(scene.triangles.size(), -1);
+  for (const auto& m : scene.materials) impl_->colors.push_back(m.rgb);
+}
+
+RgbdRenderer::~RgbdRenderer() {
+  if (impl_->scene) rtcReleaseScene(impl_->scene);
+  if (impl_->device) rtcReleaseDevice(impl_->device);
+}
+
+RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise, int threads) const {
+  RgbdFrame frame;
+  frame.camera = cam;
+  frame.width = cam.width;
+  frame.height = cam.height;
+  const std::size_t n = static_cast<std::size_t>(cam.width) * cam.height;
+  frame.rgb.assign(3 * n, 0);
+  frame.depth.assign(n, std::numeric_limits<float>::quiet_NaN());
+  frame.material.assign(n, -1);
+  frame.fruit.assign(n, -1);
+  const Eigen::Vector3d axis = cam.rotation.col(2);
+  const double cos_max = std::cos(noise.max_incidence_deg * M_PI / 180.0);
+  const std::array<std::uint8_t, 3> background = {{180, 190, 200}};
+
+  // Shades one pixel from its hit (t = range along the unit ray d), or the background.
+  auto shadePixel = [&](int u, int v, const Eigen::Vector3d& d, bool hit, float t, unsigned prim,
+                        const Eigen::Vector3d& ng, std::mt19937& rng, std::normal_distribution<double>& gauss) {
+    const std::size_t px = static_cast<std::size_t>(v) * cam.width + u;
+    std::uint8_t* out = &frame.rgb[3 * px];
+    if (!hit) {
+      std::copy(background.begin(), background.end(), out);
+      return;
+    }
+    const int mat = impl_->triangle_material[prim];
+    frame.material[px] = mat;
+    frame.fruit[px] = impl_->triangle_fruit[prim];
+    const double cos_inc = std::abs(ng.normalized().dot(d));
+    const double shade = 0.35 + 0.65 * cos_inc;  // light at the camera
+    for (int k = 0; k < 3; ++k)
+      out[k] = static_cast<std::uint8_t>(std::min(255.0, impl_->colors[mat][k] * shade + 0.5));
+    if (t < cam.min_range || t > cam.max_range) return;
+    double z = t * d.dot(axis);
+    if (noise.enabled) {
+      if (cos_inc < cos_max) return;
+      z += (noise.base + noise.quad * (z - noise.ref) * (z - noise.ref)) * gauss(rng);
+    }
+    frame.depth[px] = static_cast<float>(z);
+  };
+
+  // Packets of 4 x 4 pixels (coherent primary rays trace faster together); tile rows are
+  // interleaved over the threads. Noise is seeded per tile row: the same frame for any thread count.
+  const int tiles_x = (cam.width + 3) / 4, tiles_y = (cam.height + 3) / 4;
+  auto work = [&](int first_tile_row) {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) RTCRayHit16 rh;
+    alignas(64) int valid[16];
+    Eigen::Vector3d dirs[16];
+    for (int ty = first_tile_row; ty < tiles_y; ty += std::max(1, threads)) {
+      std::mt19937 rng(noise.seed * 7919u + static_cast<unsigned>(ty));
+      std::normal_distribution<double> gauss(0.0, 1.0);
+      for (int tx = 0; tx < tiles_x; ++tx) {
+        for (int i = 0; i < 16; ++i) {
+          const int u = 4 * tx + (i & 3), v = 4 * ty + (i >> 2);
+          valid[i] = (u < cam.width && v < cam.height) ? -1 : 0;
+          const Eigen::Vector3d d = valid[i] ? cam.rayDirection(u, v) : Eigen::Vector3d::UnitZ();
+          dirs[i] = d;
+          rh.ray.org_x[i] = static_cast<float>(cam.position.x());
+          rh.ray.org_y[i] = static_cast<float>(cam.position.y());
+          rh.ray.org_z[i] = static_cast<float>(cam.position.z());
+          rh.ray.dir_x[i] = static_cast<float>(d.x());
+          rh.ray.dir_y[i] = static_cast<float>(d.y());
+          rh.ray.dir_z[i] = static_cast<float>(d.z());
+          rh.ray.tnear[i] = 0.0f;
+          rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
+          rh.ray.time[i] = 0.0f;
+          rh.ray.mask[i] = ~0u;
+          rh.ray.id[i] = static_cast<unsigned>(i);
+          rh.ray.flags[i] = 0;
+          rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+          rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect16(valid, impl_->scene, &ctx, &rh);
+        for (int i = 0; i < 16; ++i) {
+          if (!valid[i]) continue;
+          shadePixel(4 * tx + (i & 3), 4 * ty + (i >> 2), dirs[i], rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID,
+                     rh.ray.tfar[i], rh.hit.primID[i],
+                     Eigen::Vector3d(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rng, gauss);
+        }
+      }
+    }
+  };
+  const int t = std::max(1, threads);
+  std::vector<std::thread> pool;
+  for (int i = 1; i < t; ++i) pool.emplace_back(work, i);
+  work(0);
+  for (auto& th : pool) th.join();
+  return frame;
+}
+
+FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask) {
+  FrameClouds clouds;
+  clouds.full.reserve(frame.depth.size());
+  const PinholeCamera& cam = frame.camera;
+  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  for (int v = 0; v < frame.height; ++v)
+    for (int u = 0; u < frame.width; ++u) {
+      const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
+      const double z = frame.depth[px];
+      if (!std::isfinite(z)) continue;
+      const Eigen::Vector3d c((u + 0.5 - 0.5 * cam.width) / f * z, (v + 0.5 - 0.5 * cam.height) / f * z, z);
+      const Eigen::Vector3d p = cam.position + cam.rotation * c;
+      clouds.full.push_back(p);
+      if (px < mask.size() && mask[px]) clouds.fruit.push_back(p);
+    }
+  return clouds;
+}
+
+}  // namespace sim
+}  // namespace fruit_shape_completion
