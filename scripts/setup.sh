@@ -8,7 +8,7 @@ PACKAGES=(
   catkin python3-catkin-pkg python3-empy
   ros-base-dev pluginlib-dev librostest-dev libpcl-ros-dev
   libeigen3-dev libceres-dev libpcl-dev liboctomap-dev
-  libassimp-dev libembree-dev libyaml-cpp-dev
+  libassimp-dev libembree-dev libyaml-cpp-dev libpng-dev
   libgtest-dev libbenchmark-dev
   python3-numpy python3-matplotlib
 )

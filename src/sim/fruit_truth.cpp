@@ -158,6 +158,19 @@ std::vector<FruitTruth> computeFruitTruth(const Scene& materials_from,
     components[r].push_back(t);
   }
 
+  // Stable ids whatever the triangle order of the files: by plant, then top to bottom.
+  std::vector<std::pair<std::array<double, 4>, int>> keyed;
+  for (int root : order) {
+    const auto& comp = components[root];
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int t : comp) mean += welded[weld[triangles[t][0]]] / static_cast<double>(comp.size());
+    const double plant = triangle_plant.empty() ? 0.0 : triangle_plant[comp.front()];
+    keyed.push_back({{plant, -std::round(mean.z() * 1e4), std::round(mean.x() * 1e4), std::round(mean.y() * 1e4)}, root});
+  }
+  std::sort(keyed.begin(), keyed.end());
+  order.clear();
+  for (const auto& k : keyed) order.push_back(k.second);
+
   std::vector<FruitTruth> fruits;
   for (int root : order) {
     const std::vector<int>& comp = components[root];

@@ -1,0 +1,303 @@
+#include <fruit_shape_completion/sim/fruit_mask.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+#include <fruit_shape_completion/sim/rgbd_renderer.h>
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sys/stat.h>
+#include <unistd.h>
+
+using namespace fruit_shape_completion;
+using namespace fruit_shape_completion::sim;
+
+namespace {
+
+std::string sharedData() {
+  const char* env = std::getenv("FSC_SHARED_DATA");
+  return env ? env : "../shared/data";
+}
+
+bool exists(const std::string& p) { return std::ifstream(p).good(); }
+
+// Appends an axis-aligned box (12 triangles, outward winding) to a scene.
+void addBox(Scene& s, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, int material, bool open_top = false) {
+  const int b = static_cast<int>(s.vertices.size());
+  for (int i = 0; i < 8; ++i)
+    s.vertices.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
+  const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (int f = 0; f < 6; ++f) {
+    if (open_top && f == 1) continue;  // z = hi face
+    s.triangles.emplace_back(b + faces[f][0], b + faces[f][1], b + faces[f][2]);
+    s.triangles.emplace_back(b + faces[f][0], b + faces[f][2], b + faces[f][3]);
+    s.triangle_material.push_back(material);
+    s.triangle_material.push_back(material);
+    s.triangle_plant.push_back(0);
+    s.triangle_plant.push_back(0);
+  }
+}
+
+Scene toyScene() {
+  Scene s;
+  s.materials = {{"fruit", {{200, 20, 10}}, true}, {"ground", {{90, 90, 90}}, false}};
+  addBox(s, Eigen::Vector3f(-0.05f, 0.45f, 0.2f), Eigen::Vector3f(0.05f, 0.55f, 0.3f), 0);
+  const int b = static_cast<int>(s.vertices.size());  // ground plane z = 0
+  s.vertices.emplace_back(-5.f, -5.f, 0.f);
+  s.vertices.emplace_back(5.f, -5.f, 0.f);
+  s.vertices.emplace_back(5.f, 5.f, 0.f);
+  s.vertices.emplace_back(-5.f, 5.f, 0.f);
+  s.triangles.emplace_back(b, b + 1, b + 2);
+  s.triangles.emplace_back(b, b + 2, b + 3);
+  s.triangle_material.insert(s.triangle_material.end(), {1, 1});
+  s.triangle_plant.insert(s.triangle_plant.end(), {0, 0});
+  return s;
+}
+
+// Exact first hit of a ray with the toy scene (box slabs, then the plane).
+double analyticHit(const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+  double best = std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d lo(-0.05, 0.45, 0.2), hi(0.05, 0.55, 0.3);
+  double t0 = 0, t1 = best;
+  bool hit = true;
+  for (int k = 0; k < 3 && hit; ++k) {
+    if (std::abs(d[k]) < 1e-15) {
+      hit = o[k] >= lo[k] && o[k] <= hi[k];
+      continue;
+    }
+    double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
+    if (a > b) std::swap(a, b);
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, b);
+    hit = t0 <= t1;
+  }
+  if (hit) best = t0;
+  if (d.z() < 0) best = std::min(best, -o.z() / d.z());
+  return best;
+}
+
+struct MaskScore {
+  double precision, recall;
+  int on_leaf_or_stem, on_yellow, red_pixels;
+};
+
+MaskScore scoreMask(const Scene& scene, const RgbdFrame& frame) {
+  const std::vector<std::uint8_t> mask = redMask(frame.rgb, frame.width, frame.height);
+  MaskScore s{0, 0, 0, 0, 0};
+  int tp = 0, fp = 0, fn = 0;
+  for (std::size_t i = 0; i < mask.size(); ++i) {
+    const int m = frame.material[i];
+    const bool red_fruit = m >= 0 && scene.materials[m].fruit && colorClass(scene.materials[m].rgb) == "red";
+    const bool yellow = m >= 0 && scene.materials[m].fruit && colorClass(scene.materials[m].rgb) == "yellow";
+    s.red_pixels += red_fruit;
+    if (mask[i] && red_fruit) ++tp;
+    if (mask[i] && !red_fruit) ++fp;
+    if (!mask[i] && red_fruit) ++fn;
+    if (mask[i] && m >= 0 && !scene.materials[m].fruit) ++s.on_leaf_or_stem;
+    if (mask[i] && yellow) ++s.on_yellow;
+  }
+  s.precision = tp + fp ? static_cast<double>(tp) / (tp + fp) : 1.0;
+  s.recall = tp + fn ? static_cast<double>(tp) / (tp + fn) : 1.0;
+  return s;
+}
+
+}  // namespace
+
+TEST(RgbdRenderer, DepthOfAToySceneMatchesTheAnalyticHits) {
+  const Scene scene = toyScene();
+  const RgbdRenderer renderer(scene, {});
+  DepthNoise off;
+  off.enabled = false;
+  const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(0.1, 0.0, 0.6), Eigen::Vector3d(0, 0.5, 0.2), 160, 120);
+  const RgbdFrame frame = renderer.render(cam, off);
+  int compared = 0, box = 0;
+  double worst = 0;
+  for (int v = 0; v < frame.height; ++v)
+    for (int u = 0; u < frame.width; ++u) {
+      const Eigen::Vector3d d = cam.rayDirection(u, v);
+      const double t = analyticHit(cam.position, d);
+      const float z = frame.depth[v * frame.width + u];
+      if (!std::isfinite(t) || t > cam.max_range) {
+        EXPECT_FALSE(std::isfinite(z));
+        continue;
+      }
+      ASSERT_TRUE(std::isfinite(z)) << u << "," << v;
+      worst = std::max(worst, std::abs(z - t * d.dot(cam.rotation.col(2))));
+      ++compared;
+      box += frame.material[v * frame.width + u] == 0;
+    }
+  EXPECT_GT(compared, 10000);
+  EXPECT_GT(box, 200);
+  EXPECT_LT(worst, 2e-5);  // float precision of the ray tracer
+}
+
+TEST(RgbdRenderer, NoiseGrowsWithDistanceAsModelled) {
+  const Scene scene = toyScene();
+  const RgbdRenderer renderer(scene, {});
+  // Looking straight down at the ground from 1.2 m: sigma = 0.0012 + 0.0019 * 0.8^2 = 2.4 mm.
+  PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(1, -1, 1.2), Eigen::Vector3d(1, -1, 0), 80, 60);
+  DepthNoise noise;
+  const RgbdFrame noisy = renderer.render(cam, noise);
+  noise.enabled = false;
+  const RgbdFrame exact = renderer.render(cam, noise);
+  double sum2 = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < exact.depth.size(); ++i)
+    if (std::isfinite(noisy.depth[i])) {
+      sum2 += std::pow(noisy.depth[i] - exact.depth[i], 2);
+      ++n;
+    }
+  ASSERT_GT(n, 4000);
+  const double sigma = std::sqrt(sum2 / n), expected = 0.0012 + 0.0019 * 0.64;
+  EXPECT_NEAR(sigma, expected, 0.15 * expected);
+  // Reproducible, and the same with any thread count.
+  DepthNoise again;
+  EXPECT_EQ(renderer.render(cam, again, 1).depth, noisy.depth);
+}
+
+TEST(FruitTruth, ClosedOpenAndDoubleSidedBoxesHaveExactVolumes) {
+  for (int variant = 0; variant < 3; ++variant) {
+    Scene s = toyScene();
+    s.vertices.clear();
+    s.triangles.clear();
+    s.triangle_material.clear();
+    s.triangle_plant.clear();
+    addBox(s, Eigen::Vector3f(0.1f, 0.2f, 0.3f), Eigen::Vector3f(0.2f, 0.25f, 0.34f), 0, variant == 1);
+    if (variant == 2) {  // every face also as a back face, as the capsicum COLLADA meshes have
+      const std::size_t n = s.triangles.size();
+      for (std::size_t t = 0; t < n; ++t) {
+        s.triangles.emplace_back(s.triangles[t][0], s.triangles[t][2], s.triangles[t][1]);
+        s.triangle_material.push_back(0);
+        s.triangle_plant.push_back(0);
+      }
+    }
+    const auto fruits = computeFruitTruth(s);
+    ASSERT_EQ(fruits.size(), 1u) << "variant " << variant;
+    // Exact for the corners as stored (floats).
+    const Eigen::Vector3d lo = Eigen::Vector3f(0.1f, 0.2f, 0.3f).cast<double>();
+    const Eigen::Vector3d hi = Eigen::Vector3f(0.2f, 0.25f, 0.34f).cast<double>();
+    EXPECT_NEAR(fruits[0].volume, (hi - lo).prod(), 1e-15) << "variant " << variant;
+    EXPECT_LT((fruits[0].center - 0.5 * (lo + hi)).norm(), 1e-12) << "variant " << variant;
+    EXPECT_EQ(fruits[0].boundary_edges, variant == 1 ? 4 : 0);
+  }
+}
+
+TEST(SharedScenes, ScenarioOneHasFourteenRedFruitsOfRealisticSize) {
+  const std::string path = sharedData() + "/scenes/scenario1_world14.yaml";
+  if (!exists(path)) GTEST_SKIP() << "needs ../shared/data (set FSC_SHARED_DATA): " << path << " not found";
+  Scene scene;
+  std::string err;
+  ASSERT_TRUE(loadScene(path, &scene, &err)) << err;
+  std::vector<int> triangle_fruit;
+  const auto fruits = computeFruitTruth(scene, &triangle_fruit);
+  ASSERT_EQ(fruits.size(), 14u);
+  for (const auto& f : fruits) {
+    EXPECT_EQ(f.color, "red");
+    EXPECT_GE(f.volume, 85e-6);
+    EXPECT_LE(f.volume, 265e-6);  // the largest is 263.5 cm^3 ("about 85 to 260" in the data README)
+    EXPECT_NEAR(f.se_volume, f.volume, 0.06 * f.volume);
+    EXPECT_GT(f.boundary_edges, 0);  // the stem hole was there and got closed
+  }
+  // The fruit-only ground-truth mesh gives the same fruits for the first plant.
+  std::vector<Eigen::Vector3f> v;
+  std::vector<Eigen::Vector3i> t;
+  std::vector<int> m;
+  ASSERT_TRUE(appendMeshTo(scene.plants[0].fruit_truth, scene.plants[0].position, scene.plants[0].yaw, scene, &v, &t, &m, &err)) << err;
+  const auto only = computeFruitTruth(scene, v, t, m, std::vector<int>(t.size(), 0), nullptr);
+  ASSERT_EQ(only.size(), 7u);
+  for (const auto& f : only) {
+    double best = 1;
+    for (const auto& g : fruits) best = std::min(best, (g.center - f.center).norm());
+    EXPECT_LT(best, 1e-4);
+  }
+
+  // The thresholder against the renderer's own labels, noise off.
+  const RgbdRenderer renderer(scene, triangle_fruit);
+  DepthNoise off;
+  off.enabled = false;
+  const RgbdFrame frame = renderer.render(PinholeCamera::lookingAt(scene.camera_start_position, scene.camera_start_look_at), off);
+  const MaskScore s = scoreMask(scene, frame);
+  EXPECT_GT(s.red_pixels, 5000);
+  EXPECT_GT(s.precision, 0.98);
+  EXPECT_GT(s.recall, 0.98);
+  EXPECT_EQ(s.on_leaf_or_stem, 0);
+  std::printf("[ report   ] scenario 1 mask: precision %.4f recall %.4f over %d red fruit pixels\n", s.precision, s.recall, s.red_pixels);
+}
+
+TEST(ProceduralScene, ReproduciblePepperShapedAndYellowStaysOutOfTheMask) {
+  Scene a, b;
+  std::string err;
+  ASSERT_TRUE(loadSceneSpec("procedural:7", &a, &err)) << err;
+  ASSERT_TRUE(loadSceneSpec("procedural:7", &b, &err)) << err;
+  ASSERT_EQ(a.triangles.size(), b.triangles.size());
+  EXPECT_EQ(a.vertices, b.vertices);
+  std::vector<int> triangle_fruit;
+  const auto fruits = computeFruitTruth(a, &triangle_fruit);
+  ASSERT_GE(fruits.size(), 12u);
+  int yellow = 0;
+  for (const auto& f : fruits) {
+    EXPECT_GE(f.volume, 55e-6);
+    EXPECT_LE(f.volume, 255e-6);
+    yellow += f.color == "yellow";
+  }
+  EXPECT_GE(yellow, 1);
+  const RgbdRenderer renderer(a, triangle_fruit);
+  DepthNoise off;
+  off.enabled = false;
+  const RgbdFrame frame = renderer.render(PinholeCamera::lookingAt(a.camera_start_position, a.camera_start_look_at), off);
+  const MaskScore s = scoreMask(a, frame);
+  EXPECT_GT(s.precision, 0.98);
+  EXPECT_GT(s.recall, 0.98);
+  EXPECT_EQ(s.on_leaf_or_stem, 0);
+  EXPECT_EQ(s.on_yellow, 0);
+  // Leaves really occlude: some fruit pixels of the unoccluded fruits are hidden.
+  int fruit_pixels = 0;
+  for (int id : frame.fruit) fruit_pixels += id >= 0;
+  EXPECT_GT(fruit_pixels, 1000);
+
+  // Written out and loaded back: the same fruits.
+  const std::string dir = "/tmp/fsc_scene_" + std::to_string(::getpid());
+  ASSERT_TRUE(writeSceneFiles(a, dir, &err)) << err;
+  Scene c;
+  ASSERT_TRUE(loadScene(dir + "/scene.yaml", &c, &err)) << err;
+  const auto again = computeFruitTruth(c);
+  ASSERT_EQ(again.size(), fruits.size());
+  for (std::size_t i = 0; i < fruits.size(); ++i) {
+    EXPECT_NEAR(again[i].volume, fruits[i].volume, 1e-3 * fruits[i].volume);
+    EXPECT_LT((again[i].center - fruits[i].center).norm(), 1e-4);
+  }
+  std::system(("rm -rf " + dir).c_str());
+}
+
+TEST(SceneFiles, BadFilesGiveAClearErrorNamingFileAndProblem) {
+  const std::string dir = "/tmp/fsc_bad_" + std::to_string(::getpid());
+  ::mkdir(dir.c_str(), 0755);
+  Scene s;
+  std::string err;
+  std::ofstream(dir + "/missing_mesh.yaml") << "name: x\nmaterials: {leaf: {rgb: [1, 2, 3]}}\nplants:\n  - {mesh: nowhere.dae, position: [0, 0, 0]}\n";
+  EXPECT_FALSE(loadScene(dir + "/missing_mesh.yaml", &s, &err));
+  EXPECT_NE(err.find("nowhere.dae"), std::string::npos) << err;
+  EXPECT_NE(err.find("not found"), std::string::npos) << err;
+
+  std::ofstream(dir + "/m.obj") << "mtllib m.mtl\nusemtl mystery\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(dir + "/m.mtl") << "newmtl mystery\nKd 1 0 0\n";
+  std::ofstream(dir + "/unknown_material.yaml") << "materials: {leaf: {rgb: [1, 2, 3]}}\nplants:\n  - {mesh: m.obj, position: [0, 0, 0]}\n";
+  EXPECT_FALSE(loadScene(dir + "/unknown_material.yaml", &s, &err));
+  EXPECT_NE(err.find("mystery"), std::string::npos) << err;
+  EXPECT_NE(err.find("m.obj"), std::string::npos) << err;
+
+  std::ofstream(dir + "/broken.yaml") << "plants: [ {mesh: a.dae, position: [0, 0\n";
+  EXPECT_FALSE(loadScene(dir + "/broken.yaml", &s, &err));
+  EXPECT_NE(err.find("broken.yaml"), std::string::npos) << err;
+  EXPECT_NE(err.find("malformed"), std::string::npos) << err;
+
+  std::ofstream(dir + "/bad_values.yaml") << "materials: {leaf: {rgb: [1, 2, 300]}}\nplants: []\n";
+  EXPECT_FALSE(loadScene(dir + "/bad_values.yaml", &s, &err));
+  EXPECT_NE(err.find("0-255"), std::string::npos) << err;
+
+  EXPECT_FALSE(loadScene(dir + "/does_not_exist.yaml", &s, &err));
+  EXPECT_NE(err.find("not found"), std::string::npos) << err;
+  EXPECT_FALSE(loadSceneSpec("procedural:abc", &s, &err));
+  EXPECT_NE(err.find("seed"), std::string::npos) << err;
+  std::system(("rm -rf " + dir).c_str());
+}
