@@ -1,9 +1,10 @@
 #pragma once
 // Surface cloud in, one superellipsoid per fruit out; called after every view.
 //
-// Fruits keep their id while they are the same fruit (clusters are matched to the previous
-// update's by shared occupied 1 cm cells); a fruit whose points did not change is not refitted;
-// a changed one starts from its previous fit.
+// Fruits keep their id while they are the same fruit (matched to the previous update's by
+// shared occupied 1 cm cells); a cluster whose points did not change is not refitted; a changed
+// one starts from its previous fit. A cluster no single superellipsoid fits (touching fruits)
+// is split into parts that each fit.
 #include <fruit_shape_completion/euclidean_clustering.h>
 #include <fruit_shape_completion/fruit_estimate.h>
 #include <fruit_shape_completion/missing_surface.h>
@@ -21,6 +22,8 @@ struct PipelineParams {
   ClusteringParams clustering;
   NormalParams normals;
   double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
+  // A cluster that no superellipsoid fits is split in two up to this depth (touching fruits).
+  int max_split_depth = 2;
   FitParams fit;
   MissingSurfaceParams missing;
   // Throws std::invalid_argument naming the first bad value.
@@ -32,6 +35,7 @@ struct PipelineStats {
   int non_finite_points = 0;  // skipped
   int clusters = 0;
   int fitted = 0;  // fits run this update (others reused)
+  int splits = 0;  // clusters split into several fruits
   int accepted = 0;
   double seconds = 0.0;
 };
@@ -52,11 +56,15 @@ class FruitShapePipeline {
  private:
   struct Track {
     FruitEstimate estimate;
-    std::uint64_t signature = 0;  // order-independent hash of the cluster's points
-    std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells
+    std::uint64_t cluster_signature = 0;  // order-independent hash of its cluster's points
+    std::size_t cluster_points = 0;
+    std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells of this fruit's points
   };
 
   FruitEstimate estimateCluster(const PointList& points, int id, const Track* previous);
+  // The cluster as one fruit, or, if no superellipsoid fits it, split into parts that fit.
+  std::vector<std::pair<PointList, FruitEstimate>> estimateWithSplit(const PointList& points, int depth);
+  int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
 
   PipelineParams params_;
   std::vector<Track> tracks_;

@@ -2,6 +2,7 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/spatial_hash_grid.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -119,6 +120,90 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
   return est;
 }
 
+int FruitShapePipeline::bestOverlap(const std::unordered_set<std::uint64_t>& cells) const {
+  int best = -1;
+  std::size_t best_n = 0;
+  for (std::size_t k = 0; k < tracks_.size(); ++k) {
+    std::size_t n = 0;
+    for (auto cell : cells) n += tracks_[k].cells.count(cell);
+    if (n > best_n) {
+      best_n = n;
+      best = static_cast<int>(k);
+    }
+  }
+  return best;
+}
+
+std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWithSplit(const PointList& points,
+                                                                                        int depth) {
+  const int warm = bestOverlap(occupiedCells(points));
+  FruitEstimate whole = estimateCluster(points, -1, warm >= 0 ? &tracks_[warm] : nullptr);
+  ++stats_.fitted;
+  std::vector<std::pair<PointList, FruitEstimate>> out;
+  const int min_part = params_.clustering.min_size;
+  // Touching fruits end up in one cluster, which no single superellipsoid fits: split it in
+  // two (2-means along its main axis, then one reassignment of points to the fit that explains
+  // them better) and keep the split if every part fits.
+  if (whole.accepted || !whole.converged || depth >= params_.max_split_depth ||
+      static_cast<int>(points.size()) < 2 * min_part) {
+    out.emplace_back(points, whole);
+    return out;
+  }
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) mean += p / static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov / points.size());
+  const Eigen::Vector3d axis = es.eigenvectors().col(2) * std::sqrt(std::max(0.0, es.eigenvalues()(2)));
+  Eigen::Vector3d c[2] = {mean - axis, mean + axis};
+  std::vector<int> label(points.size(), 0);
+  for (int it = 0; it < 10; ++it) {
+    Eigen::Vector3d sum[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+    int n[2] = {0, 0};
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      label[i] = (points[i] - c[1]).squaredNorm() < (points[i] - c[0]).squaredNorm();
+      sum[label[i]] += points[i];
+      ++n[label[i]];
+    }
+    if (n[0] == 0 || n[1] == 0) break;
+    c[0] = sum[0] / n[0];
+    c[1] = sum[1] / n[1];
+  }
+  auto partition = [&](PointList part[2]) {
+    part[0].clear();
+    part[1].clear();
+    for (std::size_t i = 0; i < points.size(); ++i) part[label[i]].push_back(points[i]);
+    return static_cast<int>(part[0].size()) >= min_part && static_cast<int>(part[1].size()) >= min_part;
+  };
+  PointList part[2];
+  if (!partition(part)) {
+    out.emplace_back(points, whole);
+    return out;
+  }
+  FruitEstimate first[2] = {estimateCluster(part[0], -1, nullptr), estimateCluster(part[1], -1, nullptr)};
+  stats_.fitted += 2;
+  if (first[0].converged && first[1].converged) {
+    for (std::size_t i = 0; i < points.size(); ++i)
+      label[i] = first[1].shape.radialDistance(points[i]) < first[0].shape.radialDistance(points[i]);
+    if (!partition(part)) {
+      out.emplace_back(points, whole);
+      return out;
+    }
+  }
+  std::vector<std::pair<PointList, FruitEstimate>> parts;
+  for (int k = 0; k < 2; ++k) {
+    auto sub = estimateWithSplit(part[k], depth + 1);
+    parts.insert(parts.end(), sub.begin(), sub.end());
+  }
+  for (const auto& pe : parts)
+    if (!pe.second.accepted) {
+      out.emplace_back(points, whole);
+      return out;
+    }
+  ++stats_.splits;
+  return parts;
+}
+
 const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& surface_cloud) {
   const auto start = std::chrono::steady_clock::now();
   stats_ = PipelineStats();
@@ -135,58 +220,64 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
   const auto clusters = euclideanClusters(finite, params_.clustering);
   stats_.clusters = static_cast<int>(clusters.size());
 
-  std::vector<Track> next(clusters.size());
-  std::vector<PointList> cluster_points(clusters.size());
-  for (size_t c = 0; c < clusters.size(); ++c) {
-    PointList& pts = cluster_points[c];
-    pts.reserve(clusters[c].size());
-    for (int i : clusters[c]) pts.push_back(finite[i]);
-    next[c].signature = pointSetSignature(pts);
-    next[c].cells = occupiedCells(pts);
+  std::vector<Track> next;      // fruits carried over unchanged
+  std::vector<Track> pending;   // fruits fitted now, ids still to assign
+  std::vector<char> reused(tracks_.size(), 0);
+  for (const auto& cluster : clusters) {
+    PointList pts;
+    pts.reserve(cluster.size());
+    for (int i : cluster) pts.push_back(finite[i]);
+    const std::uint64_t signature = pointSetSignature(pts);
+    // An unchanged cluster keeps its fruits (one, or several after a split) as they are.
+    bool unchanged = false;
+    for (std::size_t k = 0; k < tracks_.size(); ++k)
+      if (!reused[k] && tracks_[k].cluster_signature == signature && tracks_[k].cluster_points == pts.size()) {
+        reused[k] = 1;
+        next.push_back(tracks_[k]);
+        next.back().estimate.refitted = false;
+        unchanged = true;
+      }
+    if (unchanged) continue;
+    for (auto& part : estimateWithSplit(pts, 0)) {
+      Track t;
+      t.estimate = std::move(part.second);
+      t.cluster_signature = signature;
+      t.cluster_points = pts.size();
+      t.cells = occupiedCells(part.first);
+      pending.push_back(std::move(t));
+    }
   }
 
-  // Match clusters to previous fruits by shared cells, largest overlap first, one to one.
-  std::unordered_map<std::uint64_t, int> cell_owner;
-  for (size_t k = 0; k < tracks_.size(); ++k)
-    for (auto cell : tracks_[k].cells) cell_owner.emplace(cell, static_cast<int>(k));
+  // Ids: fitted fruits inherit the id of the previous fruit they share most 1 cm cells with,
+  // largest overlap first, one to one; the rest get new ids.
   struct Pair {
-    int overlap, cluster, track;
+    std::size_t overlap;
+    int fruit, track;
   };
   std::vector<Pair> pairs;
-  for (size_t c = 0; c < next.size(); ++c) {
-    std::unordered_map<int, int> counts;
-    for (auto cell : next[c].cells) {
-      auto it = cell_owner.find(cell);
-      if (it != cell_owner.end()) ++counts[it->second];
+  for (std::size_t f = 0; f < pending.size(); ++f)
+    for (std::size_t k = 0; k < tracks_.size(); ++k) {
+      if (reused[k]) continue;
+      std::size_t n = 0;
+      for (auto cell : pending[f].cells) n += tracks_[k].cells.count(cell);
+      if (n > 0) pairs.push_back({n, static_cast<int>(f), static_cast<int>(k)});
     }
-    for (const auto& kv : counts) pairs.push_back({kv.second, static_cast<int>(c), kv.first});
-  }
   std::sort(pairs.begin(), pairs.end(), [](const Pair& l, const Pair& r) {
-    return l.overlap != r.overlap ? l.overlap > r.overlap
-                                  : (l.cluster != r.cluster ? l.cluster < r.cluster : l.track < r.track);
+    return l.overlap != r.overlap ? l.overlap > r.overlap : (l.fruit != r.fruit ? l.fruit < r.fruit : l.track < r.track);
   });
-  std::vector<int> match(next.size(), -1);
-  std::vector<char> track_used(tracks_.size(), 0);
+  std::vector<int> id(pending.size(), -1);
   for (const auto& p : pairs) {
-    if (match[p.cluster] >= 0 || track_used[p.track]) continue;
-    match[p.cluster] = p.track;
-    track_used[p.track] = 1;
+    if (id[p.fruit] >= 0 || reused[p.track]) continue;
+    id[p.fruit] = tracks_[p.track].estimate.id;
+    reused[p.track] = 1;
   }
-
-  for (size_t c = 0; c < next.size(); ++c) {
-    const PointList& pts = cluster_points[c];
-    const Track* prev = match[c] >= 0 ? &tracks_[match[c]] : nullptr;
-    if (prev != nullptr && prev->signature == next[c].signature &&
-        prev->estimate.n_points == static_cast<int>(pts.size())) {
-      next[c].estimate = prev->estimate;
-      next[c].estimate.refitted = false;
-    } else {
-      const int id = prev != nullptr ? prev->estimate.id : next_id_++;
-      next[c].estimate = estimateCluster(pts, id, prev);
-      ++stats_.fitted;
-    }
-    if (next[c].estimate.accepted) ++stats_.accepted;
+  for (std::size_t f = 0; f < pending.size(); ++f) {
+    pending[f].estimate.id = id[f] >= 0 ? id[f] : next_id_++;
+    next.push_back(std::move(pending[f]));
   }
+  std::stable_sort(next.begin(), next.end(),
+                   [](const Track& l, const Track& r) { return l.estimate.n_points > r.estimate.n_points; });
+  for (const auto& t : next) stats_.accepted += t.estimate.accepted;
 
   tracks_.swap(next);
   fruits_.clear();

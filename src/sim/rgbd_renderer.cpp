@@ -142,6 +142,37 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
   return frame;
 }
 
+double RgbdRenderer::castRay(const Eigen::Vector3d& o, const Eigen::Vector3d& dir, double max_range) const {
+  const Eigen::Vector3d d = dir.normalized();
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = static_cast<float>(o.x());
+  rh.ray.org_y = static_cast<float>(o.y());
+  rh.ray.org_z = static_cast<float>(o.z());
+  rh.ray.dir_x = static_cast<float>(d.x());
+  rh.ray.dir_y = static_cast<float>(d.y());
+  rh.ray.dir_z = static_cast<float>(d.z());
+  rh.ray.tnear = 0.0f;
+  rh.ray.tfar = static_cast<float>(max_range);
+  rh.ray.time = 0.0f;
+  rh.ray.mask = ~0u;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? std::numeric_limits<double>::infinity() : rh.ray.tfar;
+}
+
+bool RgbdRenderer::isClear(const Eigen::Vector3d& p, double radius) const {
+  for (int x = -1; x <= 1; ++x)
+    for (int y = -1; y <= 1; ++y)
+      for (int z = -1; z <= 1; ++z)
+        if ((x || y || z) && std::isfinite(castRay(p, Eigen::Vector3d(x, y, z), radius))) return false;
+  return true;
+}
+
 FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask) {
   FrameClouds clouds;
   clouds.full.reserve(frame.depth.size());

@@ -47,6 +47,11 @@ class RgbdRenderer {
   // Renders one frame; `threads` rows-interleaved worker threads (1 or more).
   RgbdFrame render(const PinholeCamera& camera, const DepthNoise& noise = DepthNoise(), int threads = 2) const;
 
+  // True if no geometry lies within `radius` of p (26 probe rays): a camera may stand there.
+  bool isClear(const Eigen::Vector3d& p, double radius) const;
+  // Distance to the first hit along a ray, or infinity.
+  double castRay(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double max_range) const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

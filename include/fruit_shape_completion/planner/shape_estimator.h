@@ -1,0 +1,61 @@
+#pragma once
+// The seam between the viewpoint planner and fruit shape estimators (the pluginlib base class
+// of the ROS layer wraps exactly this). After each inserted view the host hands every
+// estimator the view and lets it update; before sampling views it collects the estimators'
+// extra ROI targets (e.g. the predicted, unseen fruit surface).
+#include <fruit_shape_completion/types.h>
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace planner {
+
+struct ViewData {
+  const PointList& fruit_cloud;  // masked fruit points, map frame
+  const PointList& full_cloud;   // all points, map frame
+  Eigen::Isometry3d sensor_pose;  // sensor -> map, optical axis +z
+  double time = 0.0;              // [s] since the episode start
+};
+
+struct EstimatedFruit {
+  int id = -1;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double volume = 0.0;  // [m^3]
+};
+
+class ShapeEstimator {
+ public:
+  virtual ~ShapeEstimator() = default;
+  virtual std::string name() const = 0;
+  virtual void insertView(const ViewData& view) = 0;
+  virtual void update() = 0;
+  virtual std::vector<EstimatedFruit> fruits() const = 0;
+  virtual PointList extraTargets() const = 0;
+  virtual void reset() = 0;
+};
+
+// Owns the estimators; an estimator that throws is disabled with a message, never taking the
+// planner down.
+class ShapeEstimatorHost {
+ public:
+  void add(std::unique_ptr<ShapeEstimator> estimator);
+  // Insert + update of every enabled estimator.
+  void onView(const ViewData& view);
+  PointList extraTargets() const;
+  const std::vector<std::unique_ptr<ShapeEstimator>>& estimators() const { return estimators_; }
+  bool enabled(std::size_t i) const { return i < enabled_.size() && enabled_[i]; }
+  const std::vector<std::string>& errors() const { return errors_; }
+  void reset();
+
+ private:
+  void fail(std::size_t i, const std::string& what) const;
+  std::vector<std::unique_ptr<ShapeEstimator>> estimators_;
+  mutable std::vector<char> enabled_;
+  mutable std::vector<std::string> errors_;
+};
+
+}  // namespace planner
+}  // namespace fruit_shape_completion

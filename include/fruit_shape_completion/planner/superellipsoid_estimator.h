@@ -1,0 +1,50 @@
+#pragma once
+// The superellipsoid shape estimator: TSDF fruit map -> surface -> clusters -> fits ->
+// predicted unseen surface. Thread-safe: views may be inserted from one thread (sensor
+// callbacks) while another (the planner) asks for fruits and targets.
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/tsdf_integrator.h>
+#include <fruit_shape_completion/tsdf_surface.h>
+
+#include <mutex>
+
+namespace fruit_shape_completion {
+namespace planner {
+
+struct SuperellipsoidEstimatorParams {
+  TsdfMapParams map;
+  TsdfIntegratorParams integrator;
+  SurfaceExtractionParams surface;
+  PipelineParams pipeline;
+  bool publish_targets = true;  // hand the predicted surface to the planner as extra targets
+};
+
+class SuperellipsoidEstimator : public ShapeEstimator {
+ public:
+  explicit SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params = {});
+  std::string name() const override { return "superellipsoid"; }
+  void insertView(const ViewData& view) override;
+  void update() override;
+  std::vector<EstimatedFruit> fruits() const override;
+  PointList extraTargets() const override;
+  void reset() override;
+
+  // Snapshots for display and tests.
+  std::vector<FruitEstimate> estimates() const;
+  PointList surface() const;
+  IntegrationReport lastIntegration() const;
+
+ private:
+  SuperellipsoidEstimatorParams params_;
+  mutable std::mutex mutex_;
+  TsdfMap map_;
+  TsdfIntegrator integrator_;
+  FruitShapePipeline pipeline_;
+  PointList surface_;
+  IntegrationReport last_;
+  bool dirty_ = false;
+};
+
+}  // namespace planner
+}  // namespace fruit_shape_completion

@@ -1,0 +1,63 @@
+#pragma once
+// A next-best-view loop over a simulated scene, standing in for the upstream ROI viewpoint
+// planner: render a view, insert it into the ROI octree, hand it to the shape estimators,
+// collect targets (ROI contours + the estimators' predicted surface), sample views around
+// them and take the best by utility (unknown cells near targets seen along the camera rays,
+// minus travel). Each view costs simulated time: travel at `speed` plus a fixed `view_cost`
+// for planning and capture; the episode ends when `duration` is spent.
+#include <fruit_shape_completion/planner/evaluation.h>
+#include <fruit_shape_completion/planner/roi_octree.h>
+#include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/sim/rgbd_renderer.h>
+
+#include <string>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace planner {
+
+struct PlannerParams {
+  double duration = 180.0;   // [s] simulated
+  double view_cost = 2.0;    // [s] planning + capture per view
+  double speed = 0.3;        // [m/s] camera travel (arm-like)
+  double min_view_distance = 0.3, max_view_distance = 0.5;  // [m] from a target
+  int candidates = 24;       // views sampled per step
+  int utility_rays_x = 24, utility_rays_y = 18;
+  double utility_range = 1.0;  // [m]
+  double travel_weight = 0.2;  // utility = gain / best gain - travel_weight * distance [m]
+  bool shape_targets = true;   // use the estimators' extra targets
+  int octree_pixel_step = 3;   // every n-th pixel (both ways) goes into the 1 cm octree
+  double octree_max_range = 1.5;
+  double clearance = 0.05;     // [m] free space around the camera
+  unsigned seed = 1;
+  int render_threads = 1;
+  bool depth_noise = true;
+};
+
+struct ViewRecord {
+  int view = 0;
+  double time = 0.0;  // [s] simulated, after this view's capture
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Evaluation old_true, se_true;  // against the enclosed volume
+  Evaluation old_se, se_se;      // against the ground-truth superellipsoid volume
+  int contour_targets = 0, shape_targets = 0;
+  bool exploration = false;
+  double wall_ms = 0.0;
+};
+
+struct EpisodeResult {
+  std::vector<ViewRecord> views;
+  std::string message;  // why it ended early or ran empty; empty if it ran normally
+  int truth_fruits = 0;
+};
+
+struct SceneTruth {
+  std::vector<TruthFruit> enclosed;  // volume = enclosed volume
+  std::vector<TruthFruit> se;        // volume = superellipsoid volume
+};
+
+EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
+                         const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& params);
+
+}  // namespace planner
+}  // namespace fruit_shape_completion

@@ -1,0 +1,202 @@
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/sim/fruit_mask.h>
+
+#include <octomap/octomap_types.h>
+
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <sstream>
+#include <unordered_set>
+
+namespace fruit_shape_completion {
+namespace planner {
+
+namespace {
+
+using KeySet = std::unordered_set<std::uint64_t>;
+
+std::uint64_t coarseKey(const RoiOcTree& tree, const Eigen::Vector3d& p) {
+  const octomap::OcTreeKey k = tree.key(p);
+  return (static_cast<std::uint64_t>(k[0] >> 2) << 32) | (static_cast<std::uint64_t>(k[1] >> 2) << 16) | (k[2] >> 2);
+}
+
+// 4 cm cells around the targets: unknown space there is worth seeing.
+KeySet interestCells(const RoiOcTree& tree, const PointList& targets) {
+  KeySet cells;
+  const double s = 4 * tree.getResolution();
+  for (const auto& t : targets)
+    for (int x = -1; x <= 1; ++x)
+      for (int y = -1; y <= 1; ++y)
+        for (int z = -1; z <= 1; ++z) cells.insert(coarseKey(tree, t + s * Eigen::Vector3d(x, y, z)));
+  return cells;
+}
+
+// Unknown octree cells seen along a grid of camera rays (stopping at occupied cells); only
+// those in `interest` count unless interest is null.
+double viewGain(const RoiOcTree& tree, const PinholeCamera& cam, const PlannerParams& p, const KeySet* interest) {
+  double gain = 0.0;
+  octomap::KeyRay ray;
+  const octomap::point3d o(cam.position.x(), cam.position.y(), cam.position.z());
+  for (int j = 0; j < p.utility_rays_y; ++j)
+    for (int i = 0; i < p.utility_rays_x; ++i) {
+      const int u = static_cast<int>((i + 0.5) * cam.width / p.utility_rays_x);
+      const int v = static_cast<int>((j + 0.5) * cam.height / p.utility_rays_y);
+      const Eigen::Vector3d end = cam.position + p.utility_range * cam.rayDirection(u, v);
+      if (!tree.computeRayKeys(o, octomap::point3d(end.x(), end.y(), end.z()), ray)) continue;
+      for (const auto& k : ray) {
+        const RoiOcTreeNode* n = tree.search(k);
+        if (n != nullptr) {
+          if (tree.isNodeOccupied(n)) break;
+          continue;
+        }
+        if (interest == nullptr || interest->count(coarseKey(tree, tree.center(k)))) gain += 1.0;
+      }
+    }
+  return gain;
+}
+
+}  // namespace
+
+EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
+                         const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& p) {
+  EpisodeResult result;
+  result.truth_fruits = static_cast<int>(truth.enclosed.size());
+  if (!scene.workspace.contains(scene.camera_start_position)) {
+    std::ostringstream os;
+    os << "camera start (" << scene.camera_start_position.transpose()
+       << ") is outside the workspace; no views taken";
+    result.message = os.str();
+    return result;
+  }
+  if (truth.enclosed.empty()) result.message = "the scene has no ground-truth fruits; figures stay zero";
+
+  std::mt19937 rng(p.seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  RoiOcTree tree(0.01);
+  Eigen::Vector3d pos = scene.camera_start_position, look = scene.camera_start_look_at;
+  double t = 0.0;
+  int views_without_gain = 0;
+  Eigen::Vector3d plants_center = Eigen::Vector3d::Zero();
+  for (const auto& pl : scene.plants) plants_center += pl.position / std::max<std::size_t>(1, scene.plants.size());
+
+  for (int view = 0;; ++view) {
+    t += p.view_cost;
+    if (t > p.duration) break;
+    const auto wall0 = std::chrono::steady_clock::now();
+    const PinholeCamera cam = PinholeCamera::lookingAt(pos, look);
+    sim::DepthNoise noise;
+    noise.enabled = p.depth_noise;
+    noise.seed = p.seed * 100003u + static_cast<unsigned>(view);
+    const sim::RgbdFrame frame = renderer.render(cam, noise, p.render_threads);
+    const std::vector<std::uint8_t> mask = sim::redMask(frame.rgb, frame.width, frame.height);
+    const sim::FrameClouds clouds = sim::cloudsFromFrame(frame, mask);
+
+    // The octree gets a pixel subsample (its 1 cm cells need no more); the estimators get all.
+    PointList octree_points;
+    std::vector<char> octree_fruit;
+    const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+    for (int v = 0; v < frame.height; v += p.octree_pixel_step)
+      for (int u = 0; u < frame.width; u += p.octree_pixel_step) {
+        const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
+        const double z = frame.depth[px];
+        if (!std::isfinite(z)) continue;
+        octree_points.push_back(cam.position +
+                                cam.rotation * Eigen::Vector3d((u + 0.5 - 0.5 * cam.width) / f * z,
+                                                               (v + 0.5 - 0.5 * cam.height) / f * z, z));
+        octree_fruit.push_back(mask[px] ? 1 : 0);
+      }
+    tree.insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = cam.rotation;
+    pose.translation() = cam.position;
+    host.onView(ViewData{clouds.fruit, clouds.full, pose, t});
+
+    ViewRecord rec;
+    rec.view = view;
+    rec.time = t;
+    rec.position = pos;
+    std::vector<EstimatedFruit> old_fruits, se_fruits;
+    for (const auto& c : tree.roiClusters(10)) old_fruits.push_back({-1, c.center(), c.volume()});
+    if (!host.estimators().empty() && host.enabled(0)) se_fruits = host.estimators()[0]->fruits();
+    rec.old_true = evaluate(old_fruits, truth.enclosed);
+    rec.se_true = evaluate(se_fruits, truth.enclosed);
+    rec.old_se = evaluate(old_fruits, truth.se);
+    rec.se_se = evaluate(se_fruits, truth.se);
+
+    // Targets and the next view.
+    PointList targets = tree.roiContourTargets();
+    rec.contour_targets = static_cast<int>(targets.size());
+    if (p.shape_targets) {
+      const PointList extra = host.extraTargets();
+      rec.shape_targets = static_cast<int>(extra.size());
+      targets.insert(targets.end(), extra.begin(), extra.end());
+    }
+    const KeySet interest = interestCells(tree, targets);
+    struct Candidate {
+      Eigen::Vector3d pos, look;
+      double gain;
+    };
+    std::vector<Candidate> cands;
+    auto tryCandidate = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& target, const KeySet* interest_set) {
+      if (!scene.workspace.contains(c) || (c - target).norm() < 1e-3 || !renderer.isClear(c, p.clearance)) return;
+      const PinholeCamera cc = PinholeCamera::lookingAt(c, target);
+      cands.push_back({c, target, viewGain(tree, cc, p, interest_set)});
+    };
+    std::normal_distribution<double> g(0.0, 1.0);
+    if (!targets.empty()) {
+      for (int i = 0; i < p.candidates; ++i) {
+        const Eigen::Vector3d& target = targets[static_cast<std::size_t>(unit(rng) * targets.size()) % targets.size()];
+        Eigen::Vector3d dir(g(rng), g(rng), g(rng));
+        dir.normalize();
+        const double dist = p.min_view_distance + unit(rng) * (p.max_view_distance - p.min_view_distance);
+        tryCandidate(target + dist * dir, target, &interest);
+      }
+    }
+    double best_gain = 0.0;
+    for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
+    if (best_gain <= 0.0) {  // exploration: anywhere in the workspace, looking at the plants
+      rec.exploration = true;
+      cands.clear();
+      for (int i = 0; i < p.candidates; ++i) {
+        const Eigen::Vector3d c = scene.workspace.box_min +
+                                  (scene.workspace.box_max - scene.workspace.box_min).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+        const Eigen::Vector3d target =
+            scene.plants.empty() ? plants_center
+                                 : scene.plants[static_cast<std::size_t>(unit(rng) * scene.plants.size()) % scene.plants.size()].position +
+                                       Eigen::Vector3d(0, 0, 0.2 + 0.5 * unit(rng));
+        tryCandidate(c, target, nullptr);
+      }
+      best_gain = 0.0;
+      for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
+    }
+    rec.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
+    result.views.push_back(rec);
+    if (cands.empty() || best_gain <= 0.0) {
+      if (++views_without_gain >= 3) {
+        if (result.message.empty()) result.message = "no view in the workspace sees anything new; episode ended early";
+        break;
+      }
+      // Stay, but turn to look elsewhere.
+      look = pos + Eigen::Vector3d(g(rng), g(rng), 0.2 * g(rng)).normalized();
+      continue;
+    }
+    views_without_gain = 0;
+    const Candidate* best = nullptr;
+    double best_u = -1e300;
+    for (const auto& c : cands) {
+      const double u = c.gain / best_gain - p.travel_weight * (c.pos - pos).norm();
+      if (u > best_u) {
+        best_u = u;
+        best = &c;
+      }
+    }
+    t += (best->pos - pos).norm() / p.speed;
+    pos = best->pos;
+    look = best->look;
+  }
+  return result;
+}
+
+}  // namespace planner
+}  // namespace fruit_shape_completion

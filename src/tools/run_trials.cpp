@@ -1,0 +1,234 @@
+// run_trials: episodes of the viewpoint planner on a scene, Old (ROI octree boxes) and SE
+// (superellipsoids) evaluated side by side after every view, as in the paper's tables.
+//   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
+//              [--no-shape-targets] [--no-noise] --out DIR [--json] [--jobs J]
+#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include <sys/stat.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <thread>
+
+#include "fruit_report.h"
+
+using namespace fruit_shape_completion;
+using namespace fruit_shape_completion::planner;
+
+namespace {
+
+const char* kSubsets[3] = {"all", "ma0", "ma50"};
+
+const SubsetStats& subset(const Evaluation& e, int s) { return s == 0 ? e.all : (s == 1 ? e.ma0 : e.ma50); }
+
+// The last view at or before time t (nullptr if none).
+const ViewRecord* at(const EpisodeResult& r, double t) {
+  const ViewRecord* last = nullptr;
+  for (const auto& v : r.views)
+    if (v.time <= t + 1e-9) last = &v;
+  return last;
+}
+
+struct MeanStd {
+  double mean = 0, std = 0;
+};
+MeanStd meanStd(const std::vector<double>& v) {
+  MeanStd m;
+  if (v.empty()) return m;
+  for (double x : v) m.mean += x / v.size();
+  for (double x : v) m.std += (x - m.mean) * (x - m.mean) / v.size();
+  m.std = std::sqrt(m.std);
+  return m;
+}
+
+// {"all": {"fruits": {...}, "center_error_cm": {...}, "accuracy": {...}}, "ma0": ..., "ma50": ...}
+std::string subsetsJson(const std::vector<const Evaluation*>& evals) {
+  std::string out = "{";
+  for (int s = 0; s < 3; ++s) {
+    std::vector<double> n, err, acc;
+    for (const Evaluation* e : evals) {
+      const SubsetStats& st = subset(*e, s);
+      n.push_back(st.fruits);
+      if (st.fruits > 0) {
+        err.push_back(st.center_error_cm);
+        acc.push_back(st.accuracy);
+      }
+    }
+    auto ms = [](const std::vector<double>& v) {
+      const MeanStd m = meanStd(v);
+      return "{\"mean\": " + jsonNumber(m.mean) + ", \"std\": " + jsonNumber(m.std) + "}";
+    };
+    out += std::string(s ? ", " : "") + "\"" + kSubsets[s] + "\": {\"fruits\": " + ms(n) +
+           ", \"center_error_cm\": " + ms(err) + ", \"accuracy\": " + ms(acc) + "}";
+  }
+  return out + "}";
+}
+
+void printTable(const char* title, const std::vector<const Evaluation*>& old_e, const std::vector<const Evaluation*>& se_e) {
+  std::printf("\n%s\n", title);
+  std::printf("%-6s %-5s %14s %16s %16s\n", "", "", "fruits", "centre err [cm]", "volume acc");
+  for (int s = 0; s < 3; ++s)
+    for (int k = 0; k < 2; ++k) {
+      const auto& ev = k == 0 ? old_e : se_e;
+      std::vector<double> n, err, acc;
+      for (const Evaluation* e : ev) {
+        const SubsetStats& st = subset(*e, s);
+        n.push_back(st.fruits);
+        if (st.fruits > 0) {
+          err.push_back(st.center_error_cm);
+          acc.push_back(st.accuracy);
+        }
+      }
+      const MeanStd a = meanStd(n), b = meanStd(err), c = meanStd(acc);
+      std::printf("%-6s %-5s %7.1f +- %4.1f %9.2f +- %4.2f %9.3f +- %4.3f\n", k == 0 ? kSubsets[s] : "",
+                  k == 0 ? "Old" : "SE", a.mean, a.std, b.mean, b.std, c.mean, c.std);
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string spec, out;
+  int trials = 1, jobs = 0;
+  bool json = false;
+  PlannerParams base;
+  for (int i = 1; i < argc; ++i) {
+    auto need = [&](const char* flag) { return !std::strcmp(argv[i], flag) && i + 1 < argc; };
+    if (need("--scene")) spec = argv[++i];
+    else if (need("--trials")) trials = std::atoi(argv[++i]);
+    else if (need("--duration")) base.duration = std::atof(argv[++i]);
+    else if (need("--seed")) base.seed = std::strtoul(argv[++i], nullptr, 10);
+    else if (need("--out")) out = argv[++i];
+    else if (need("--jobs")) jobs = std::atoi(argv[++i]);
+    else if (!std::strcmp(argv[i], "--no-shape-targets")) base.shape_targets = false;
+    else if (!std::strcmp(argv[i], "--no-noise")) base.depth_noise = false;
+    else if (!std::strcmp(argv[i], "--json")) json = true;
+    else {
+      std::cerr << "usage: run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K] "
+                   "[--no-shape-targets] [--no-noise] --out DIR [--json] [--jobs J]\n";
+      return 2;
+    }
+  }
+  if (spec.empty() || out.empty()) {
+    std::cerr << "run_trials: --scene and --out are required\n";
+    return 2;
+  }
+  if (trials < 1 || trials > 1000 || !(base.duration > 0) || !std::isfinite(base.duration)) {
+    std::cerr << "run_trials: --trials must be 1..1000 and --duration a positive number of seconds\n";
+    return 2;
+  }
+  sim::Scene scene;
+  std::string err;
+  if (!sim::loadSceneSpec(spec, &scene, &err)) {
+    std::cerr << "run_trials: " << err << "\n";
+    return 1;
+  }
+  std::vector<int> triangle_fruit;
+  const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
+  SceneTruth truth;
+  for (const auto& f : fruits) {
+    truth.enclosed.push_back({f.center, f.volume});
+    truth.se.push_back({f.se.t, f.se_volume});
+  }
+  const sim::RgbdRenderer renderer(scene, triangle_fruit);
+  ::mkdir(out.c_str(), 0755);
+
+  if (jobs <= 0) jobs = std::max(1u, std::thread::hardware_concurrency());
+  jobs = std::min(jobs, trials);
+  std::vector<EpisodeResult> results(trials);
+  std::vector<double> wall(trials, 0.0);
+  std::atomic<int> next{0};
+  std::mutex log;
+  auto worker = [&]() {
+    for (int k = next++; k < trials; k = next++) {
+      PlannerParams p = base;
+      p.seed = base.seed + static_cast<unsigned>(k);
+      p.render_threads = jobs == 1 ? 2 : 1;
+      ShapeEstimatorHost host;
+      host.add(std::make_unique<SuperellipsoidEstimator>());
+      const auto t0 = std::chrono::steady_clock::now();
+      results[k] = runEpisode(scene, renderer, truth, host, p);
+      wall[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      std::lock_guard<std::mutex> lock(log);
+      std::cerr << "run_trials: trial " << k << ": " << results[k].views.size() << " views, " << wall[k]
+                << " s wall" << (results[k].message.empty() ? "" : " (" + results[k].message + ")") << "\n";
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int j = 1; j < jobs; ++j) pool.emplace_back(worker);
+  worker();
+  for (auto& th : pool) th.join();
+
+  // Per-trial CSV: one row per view.
+  for (int k = 0; k < trials; ++k) {
+    std::ofstream csv(out + "/trial_" + std::to_string(k) + ".csv");
+    csv << "view,time_s,x,y,z,exploration,contour_targets,shape_targets,wall_ms";
+    for (const char* est : {"old", "se"})
+      for (const char* s : kSubsets) csv << ',' << est << '_' << s << "_fruits," << est << '_' << s << "_center_cm," << est << '_' << s << "_accuracy";
+    csv << '\n';
+    for (const auto& v : results[k].views) {
+      csv << v.view << ',' << v.time << ',' << v.position.x() << ',' << v.position.y() << ',' << v.position.z() << ','
+          << v.exploration << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms;
+      for (const Evaluation* e : {&v.old_true, &v.se_true})
+        for (int s = 0; s < 3; ++s)
+          csv << ',' << subset(*e, s).fruits << ',' << subset(*e, s).center_error_cm << ',' << subset(*e, s).accuracy;
+      csv << '\n';
+    }
+  }
+
+  static const Evaluation kEmpty;
+  auto collect = [&](double t, Evaluation ViewRecord::*field) {
+    std::vector<const Evaluation*> v;
+    for (const auto& r : results) {
+      const ViewRecord* rec = at(r, t);
+      v.push_back(rec ? &(rec->*field) : &kEmpty);
+    }
+    return v;
+  };
+  std::vector<double> views_per;
+  for (const auto& r : results) views_per.push_back(r.views.size());
+  std::ofstream js(out + "/results.json");
+  std::ostringstream body;
+  body << "{\"scene\": " << jsonString(scene.name) << ", \"trials\": " << trials << ", \"duration_s\": "
+       << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
+       << ", \"truth_fruits\": " << fruits.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
+       << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean);
+  for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0)}) {
+    body << ", \"" << label << "\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_true))
+         << ", \"se\": " << subsetsJson(collect(t, &ViewRecord::se_true))
+         << ", \"against_se_truth\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_se))
+         << ", \"se\": " << subsetsJson(collect(t, &ViewRecord::se_se)) << "}}";
+  }
+  std::string messages;
+  for (const auto& r : results)
+    if (!r.message.empty() && messages.find(r.message) == std::string::npos) messages += (messages.empty() ? "" : "; ") + r.message;
+  body << ", \"messages\": " << jsonString(messages) << "}\n";
+  js << body.str();
+  if (!js) {
+    std::cerr << "run_trials: cannot write " << out << "/results.json\n";
+    return 1;
+  }
+  if (json) {
+    std::cout << body.str();
+  } else {
+    std::printf("%s: %zu ground-truth fruits, %d trials of %.0f s (simulated), shape targets %s, %.1f views and %.1f s wall per trial\n",
+                scene.name.c_str(), fruits.size(), trials, base.duration, base.shape_targets ? "on" : "off",
+                meanStd(views_per).mean, meanStd(wall).mean);
+    if (!messages.empty()) std::printf("note: %s\n", messages.c_str());
+    printTable("after the full duration, against the enclosed (true) volume:", collect(base.duration, &ViewRecord::old_true),
+               collect(base.duration, &ViewRecord::se_true));
+    printTable("against the paper-style ground-truth superellipsoid volume:", collect(base.duration, &ViewRecord::old_se),
+               collect(base.duration, &ViewRecord::se_se));
+    std::printf("\nwritten: %s/results.json, %s/trial_*.csv\n", out.c_str(), out.c_str());
+  }
+  return 0;
+}
