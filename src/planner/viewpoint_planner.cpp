@@ -80,6 +80,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   Eigen::Vector3d plants_center = Eigen::Vector3d::Zero();
   for (const auto& pl : scene.plants) plants_center += pl.position / std::max<std::size_t>(1, scene.plants.size());
 
+  std::size_t seen_points = 0, seen_fruit = 0;
   for (int view = 0;; ++view) {
     t += p.view_cost;
     if (t > p.duration) break;
@@ -91,6 +92,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     const sim::RgbdFrame frame = renderer.render(cam, noise, p.render_threads);
     const std::vector<std::uint8_t> mask = sim::redMask(frame.rgb, frame.width, frame.height);
     const sim::FrameClouds clouds = sim::cloudsFromFrame(frame, mask);
+    seen_points += clouds.full.size();
+    seen_fruit += clouds.fruit.size();
 
     // The octree gets a pixel subsample (its 1 cm cells need no more); the estimators get all.
     PointList octree_points;
@@ -194,6 +197,14 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     t += (best->pos - pos).norm() / p.speed;
     pos = best->pos;
     look = best->look;
+  }
+  if (!result.views.empty() && result.message.empty()) {
+    std::ostringstream os;
+    if (seen_points == 0)
+      os << "nothing can be seen from the workspace: " << result.views.size() << " views returned no depth";
+    else if (seen_fruit == 0)
+      os << "nothing red was seen in " << result.views.size() << " views: no fruit to measure";
+    result.message = os.str();
   }
   return result;
 }

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
-#include <sys/stat.h>
+#include <filesystem>
 
 namespace fruit_shape_completion {
 namespace sim {
@@ -229,7 +229,8 @@ bool loadSceneSpec(const std::string& spec, Scene* scene, std::string* error) {
 }
 
 bool writeSceneFiles(const Scene& scene, const std::string& dir, std::string* error) {
-  ::mkdir(dir.c_str(), 0755);
+  std::error_code mkdir_error;
+  std::filesystem::create_directories(dir, mkdir_error);
   auto fail = [&](const std::string& what) {
     *error = dir + ": " + what;
     return false;

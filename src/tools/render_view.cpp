@@ -11,7 +11,7 @@
 #include <fruit_shape_completion/sim/procedural_scene.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 
-#include <sys/stat.h>
+#include <filesystem>
 
 #include <cmath>
 #include <cstring>
@@ -71,7 +71,8 @@ int main(int argc, char** argv) {
   const std::vector<std::uint8_t> mask = redMask(frame.rgb, frame.width, frame.height);
   const FrameClouds clouds = cloudsFromFrame(frame, mask);
 
-  ::mkdir(out.c_str(), 0755);
+  std::error_code mkdir_error;
+  std::filesystem::create_directories(out, mkdir_error);
   const std::size_t n = frame.depth.size();
   std::vector<std::uint16_t> depth_mm(n, 0);
   std::vector<std::uint8_t> mask8(n), labels8(n);

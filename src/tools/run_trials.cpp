@@ -7,7 +7,7 @@
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
 
-#include <sys/stat.h>
+#include <filesystem>
 
 #include <atomic>
 #include <chrono>
@@ -140,7 +140,8 @@ int main(int argc, char** argv) {
     truth.se.push_back({f.se.t, f.se_volume});
   }
   const sim::RgbdRenderer renderer(scene, triangle_fruit);
-  ::mkdir(out.c_str(), 0755);
+  std::error_code mkdir_error;
+  std::filesystem::create_directories(out, mkdir_error);
 
   if (jobs <= 0) jobs = std::max(1u, std::thread::hardware_concurrency());
   jobs = std::min(jobs, trials);

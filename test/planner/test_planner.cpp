@@ -1,0 +1,236 @@
+#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+#include <fruit_shape_completion/synthetic_fruit.h>
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+
+using namespace fruit_shape_completion;
+using namespace fruit_shape_completion::planner;
+
+namespace {
+
+// A wall of points at y = 1 seen from (0, 0, 0.5); a 10 x 10 cm fruit patch stands 10 cm in
+// front of it, casting an unknown shadow on the wall.
+void wallScan(PointList* pts, std::vector<char>* fruit) {
+  for (double x = -0.3; x <= 0.3; x += 0.004)
+    for (double z = 0.2; z <= 0.8; z += 0.004) {
+      const bool patch = std::abs(x) < 0.05 && std::abs(z - 0.5) < 0.05;
+      pts->emplace_back(x, patch ? 0.9 : 1.0, z);
+      fruit->push_back(patch);
+    }
+}
+
+struct SimulatedScene {
+  sim::Scene scene;
+  std::vector<int> triangle_fruit;
+  SceneTruth truth;
+  std::unique_ptr<sim::RgbdRenderer> renderer;
+  explicit SimulatedScene(const std::string& spec) {
+    std::string err;
+    EXPECT_TRUE(sim::loadSceneSpec(spec, &scene, &err)) << err;
+    rebuild();
+  }
+  void rebuild() {
+    truth = SceneTruth();
+    for (const auto& f : sim::computeFruitTruth(scene, &triangle_fruit)) {
+      truth.enclosed.push_back({f.center, f.volume});
+      truth.se.push_back({f.se.t, f.se_volume});
+    }
+    renderer = std::make_unique<sim::RgbdRenderer>(scene, triangle_fruit);
+  }
+};
+
+class ThrowingEstimator : public ShapeEstimator {
+ public:
+  std::string name() const override { return "throwing"; }
+  void insertView(const ViewData&) override { throw std::runtime_error("broken on purpose"); }
+  void update() override {}
+  std::vector<EstimatedFruit> fruits() const override { return {}; }
+  PointList extraTargets() const override { return {}; }
+  void reset() override {}
+};
+
+}  // namespace
+
+TEST(RoiOcTree, ScanMarksFreeOccupiedAndRoiCells) {
+  RoiOcTree tree(0.01);
+  PointList pts;
+  std::vector<char> fruit;
+  wallScan(&pts, &fruit);
+  tree.insertScan(pts, fruit, Eigen::Vector3d(0, 0, 0.5), 3.0);
+  const RoiOcTreeNode* wall = tree.search(0.2, 1.0, 0.3);
+  ASSERT_NE(wall, nullptr);
+  EXPECT_TRUE(tree.isNodeOccupied(wall));
+  EXPECT_FALSE(tree.isRoi(wall));
+  const RoiOcTreeNode* free = tree.search(0.0, 0.5, 0.5);
+  ASSERT_NE(free, nullptr);
+  EXPECT_FALSE(tree.isNodeOccupied(free));
+  EXPECT_EQ(tree.search(0.0, 1.5, 0.5), nullptr);  // behind the wall: unknown
+  const auto clusters = tree.roiClusters(10);
+  ASSERT_EQ(clusters.size(), 1u);
+  EXPECT_LT((clusters[0].center() - Eigen::Vector3d(0, 0.9, 0.5)).norm(), 0.01);
+  EXPECT_NEAR(clusters[0].box_max.x() - clusters[0].box_min.x(), 0.09, 0.011);
+  EXPECT_EQ(tree.search(0.0, 0.95, 0.5), nullptr);  // the patch's shadow: unknown
+  // Contour targets: free cells beside the fruit patch next to its unknown shadow.
+  const PointList targets = tree.roiContourTargets();
+  EXPECT_FALSE(targets.empty());
+  for (const auto& t : targets) {
+    EXPECT_LT((t - Eigen::Vector3d(0, 0.9, 0.5)).norm(), 0.09);
+    const RoiOcTreeNode* n = tree.search(t.x(), t.y(), t.z());
+    ASSERT_NE(n, nullptr);
+    EXPECT_FALSE(tree.isNodeOccupied(n));
+  }
+  // Seen again as leaf: the ROI value drops below zero after enough misses.
+  std::vector<char> none(pts.size(), 0);
+  for (int i = 0; i < 4; ++i) tree.insertScan(pts, none, Eigen::Vector3d(0, 0, 0.5), 3.0);
+  EXPECT_TRUE(tree.roiClusters(10).empty());
+  // Bad input: a NaN origin or NaN points change nothing and do not crash.
+  EXPECT_EQ(tree.insertScan(pts, fruit, Eigen::Vector3d(NAN, 0, 0), 3.0), 0u);
+  EXPECT_EQ(tree.insertScan({Eigen::Vector3d(NAN, 0, 0)}, {1}, Eigen::Vector3d::Zero(), 3.0), 0u);
+}
+
+TEST(Evaluation, GreedyOneToOneMatchingAndSubsets) {
+  const std::vector<TruthFruit> truth = {{Eigen::Vector3d(0, 0, 0), 100e-6}, {Eigen::Vector3d(1, 0, 0), 200e-6},
+                                         {Eigen::Vector3d(2, 0, 0), 100e-6}};
+  const std::vector<EstimatedFruit> det = {
+      {0, Eigen::Vector3d(0.01, 0, 0), 90e-6},    // acc 0.9, 1 cm
+      {1, Eigen::Vector3d(0.05, 0, 0), 100e-6},   // also nearest to fruit 0, but taken: unmatched within 0.2
+      {2, Eigen::Vector3d(1.0, 0.02, 0), 500e-6}, // acc -0.5
+      {3, Eigen::Vector3d(2.0, 0.3, 0), 100e-6}}; // 30 cm away: no match
+  const Evaluation e = evaluate(det, truth, 0.2);
+  EXPECT_EQ(e.all.fruits, 2);
+  EXPECT_NEAR(e.all.center_error_cm, 1.5, 1e-9);
+  EXPECT_NEAR(e.all.accuracy, (0.9 - 0.5) / 2, 1e-9);
+  EXPECT_EQ(e.ma0.fruits, 1);
+  EXPECT_EQ(e.ma50.fruits, 1);
+  EXPECT_NEAR(e.ma50.accuracy, 0.9, 1e-9);
+  EXPECT_EQ(evaluate({}, truth).all.fruits, 0);
+}
+
+TEST(ShapeEstimatorHost, AThrowingEstimatorIsDisabledNotFatal) {
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<ThrowingEstimator>());
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  PointList fruit, full;
+  std::mt19937 rng(1);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  ScanParams scan;
+  scan.view_dir = Eigen::Vector3d(0, -1, 0);
+  scan.visible_fraction = 0.5;
+  scan.voxel = 0.002;
+  fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() << 1, 0, 0, 0, 0, 1, 0, -1, 0;  // optical axis along +y
+  host.onView(ViewData{fruit, full, pose, 1.0});
+  EXPECT_FALSE(host.enabled(0));
+  EXPECT_TRUE(host.enabled(1));
+  ASSERT_EQ(host.errors().size(), 1u);
+  EXPECT_NE(host.errors()[0].find("broken on purpose"), std::string::npos);
+  const auto fruits = host.estimators()[1]->fruits();
+  ASSERT_EQ(fruits.size(), 1u);
+  EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.15 * truth.volume());
+  EXPECT_FALSE(host.extraTargets().empty());  // the unseen back half
+}
+
+TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
+  SuperellipsoidEstimator est;
+  std::atomic<bool> done{false};
+  std::atomic<int> queries{0};
+  std::thread reader([&] {
+    while (!done) {
+      for (const auto& f : est.fruits()) EXPECT_TRUE(f.center.allFinite());
+      est.extraTargets();
+      ++queries;
+    }
+  });
+  std::mt19937 rng(2);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  const PointList none;
+  for (int v = 0; v < 6; ++v) {
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(std::cos(v), -1, std::sin(v));
+    scan.visible_fraction = 0.4;
+    scan.voxel = 0.002;
+    scan.seed = v;
+    const PointList fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+    est.insertView(ViewData{fruit, none, pose, double(v)});
+    est.update();
+  }
+  done = true;
+  reader.join();
+  EXPECT_GT(queries.load(), 0);
+  ASSERT_EQ(est.fruits().size(), 1u);
+  EXPECT_NEAR(est.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
+}
+
+TEST(ViewpointPlanner, ShortEpisodeFindsAndMeasuresTheFruits) {
+  SimulatedScene s("procedural:3");
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  PlannerParams p;
+  p.duration = 60;
+  p.render_threads = 2;
+  const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, p);
+  ASSERT_GE(r.views.size(), 5u);
+  EXPECT_TRUE(r.message.empty()) << r.message;
+  for (std::size_t i = 1; i < r.views.size(); ++i) EXPECT_GT(r.views[i].time, r.views[i - 1].time);
+  EXPECT_LE(r.views.back().time, p.duration);
+  for (const auto& v : r.views) EXPECT_TRUE(s.scene.workspace.contains(v.position));
+  const ViewRecord& last = r.views.back();
+  int red = 0;
+  for (const auto& f : sim::computeFruitTruth(s.scene)) red += f.color == "red";
+  std::printf("[ report   ] procedural:3, 60 s: %zu views, SE MA50 %d of %d red fruits, accuracy %.3f, "
+              "centre %.2f cm; Old MA50 %d\n", r.views.size(), last.se_true.ma50.fruits, red,
+              last.se_true.ma50.accuracy, last.se_true.ma50.center_error_cm, last.old_true.ma50.fruits);
+  EXPECT_GE(last.se_true.ma50.fruits, red / 2);
+  EXPECT_GT(last.se_true.ma50.accuracy, 0.8);
+  EXPECT_LT(last.se_true.ma50.center_error_cm, 1.5);
+}
+
+TEST(ViewpointPlanner, BadScenesGiveAMessageAndAValidResult) {
+  SimulatedScene s("procedural:4");
+  PlannerParams p;
+  p.duration = 20;
+  {  // camera start outside the workspace
+    sim::Scene outside = s.scene;
+    outside.camera_start_position = Eigen::Vector3d(50, 50, 50);
+    ShapeEstimatorHost host;
+    host.add(std::make_unique<SuperellipsoidEstimator>());
+    const EpisodeResult r = runEpisode(outside, *s.renderer, s.truth, host, p);
+    EXPECT_TRUE(r.views.empty());
+    EXPECT_NE(r.message.find("outside the workspace"), std::string::npos) << r.message;
+  }
+  {  // a workspace from which nothing can be seen (high above the plants, looking up)
+    sim::Scene blind = s.scene;
+    blind.workspace.box_min = Eigen::Vector3d(-0.3, -0.3, 20);
+    blind.workspace.box_max = Eigen::Vector3d(0.3, 0.3, 21);
+    blind.camera_start_position = Eigen::Vector3d(0, 0, 20.5);
+    blind.camera_start_look_at = Eigen::Vector3d(0, 0, 30);
+    ShapeEstimatorHost host;
+    host.add(std::make_unique<SuperellipsoidEstimator>());
+    const EpisodeResult r = runEpisode(blind, *s.renderer, s.truth, host, p);
+    EXPECT_NE(r.message.find("nothing"), std::string::npos) << r.message;
+    ASSERT_FALSE(r.views.empty());
+    EXPECT_EQ(r.views.back().se_true.all.fruits, 0);
+  }
+  {  // a scene without fruits
+    sim::Scene bare = s.scene;
+    for (auto& m : bare.materials) m.fruit = false;
+    SimulatedScene no_fruit("procedural:4");
+    no_fruit.scene = bare;
+    no_fruit.rebuild();
+    EXPECT_TRUE(no_fruit.truth.enclosed.empty());
+    ShapeEstimatorHost host;
+    host.add(std::make_unique<SuperellipsoidEstimator>());
+    const EpisodeResult r = runEpisode(no_fruit.scene, *no_fruit.renderer, no_fruit.truth, host, p);
+    EXPECT_NE(r.message.find("no ground-truth fruits"), std::string::npos) << r.message;
+    EXPECT_FALSE(r.views.empty());
+  }
+}
