@@ -82,6 +82,7 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
   FruitEstimate est;
   est.id = id;
   est.n_points = static_cast<int>(points.size());
+  est.points = points;
   est.refitted = true;
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;

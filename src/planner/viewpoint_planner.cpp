@@ -59,7 +59,8 @@ double viewGain(const RoiOcTree& tree, const PinholeCamera& cam, const PlannerPa
 }  // namespace
 
 EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
-                         const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& p) {
+                         const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& p,
+                         const ViewCallback& on_view) {
   EpisodeResult result;
   result.truth_fruits = static_cast<int>(truth.enclosed.size());
   if (!scene.workspace.contains(scene.camera_start_position)) {
@@ -175,6 +176,10 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     }
     rec.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
     result.views.push_back(rec);
+    if (on_view && !on_view(rec, tree, cam, clouds)) {
+      if (result.message.empty()) result.message = "stopped by the caller";
+      break;
+    }
     if (cands.empty() || best_gain <= 0.0) {
       if (++views_without_gain >= 3) {
         if (result.message.empty()) result.message = "no view in the workspace sees anything new; episode ended early";

@@ -10,6 +10,7 @@
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -56,8 +57,13 @@ struct SceneTruth {
   std::vector<TruthFruit> se;        // volume = superellipsoid volume
 };
 
+// Called after every view (e.g. to publish it); return false to stop the episode.
+using ViewCallback = std::function<bool(const ViewRecord&, const RoiOcTree&, const PinholeCamera&,
+                                        const sim::FrameClouds&)>;
+
 EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
-                         const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& params);
+                         const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& params,
+                         const ViewCallback& on_view = nullptr);
 
 }  // namespace planner
 }  // namespace fruit_shape_completion

@@ -1,0 +1,37 @@
+#pragma once
+// Publishes a shape estimator's state in a namespace: superellipsoids
+// (fruit_shape_completion/SuperellipsoidArray), fruit_markers (visualization_msgs/MarkerArray:
+// each fit as a triangle mesh plus an id/volume label), clusters (PointCloud2 coloured per
+// fruit), missing_surface and tsdf_surface (PointCloud2), all in the map frame.
+#include <fruit_shape_completion/fruit_estimate.h>
+
+#include <ros/node_handle.h>
+#include <ros/publisher.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace ros_io {
+
+// An xyz (+ optional packed rgb) PointCloud2.
+sensor_msgs::PointCloud2 toCloud(const PointList& points, const std::string& frame, const ros::Time& stamp,
+                                 const std::vector<std::array<std::uint8_t, 3>>& colors = {});
+// Finite points of an xyz PointCloud2 (any float32/float64 x, y, z fields); `non_finite` counts
+// the skipped ones. False with a message if the cloud has no x, y, z fields or is malformed.
+bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size_t* non_finite, std::string* error);
+
+class FruitPublisher {
+ public:
+  FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame);
+  void publish(const std::vector<FruitEstimate>& fruits, const PointList& surface, const ros::Time& stamp);
+
+ private:
+  std::string frame_;
+  ros::Publisher superellipsoids_, markers_, clusters_, missing_, surface_;
+};
+
+}  // namespace ros_io
+}  // namespace fruit_shape_completion

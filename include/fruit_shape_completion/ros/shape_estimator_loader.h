@@ -1,0 +1,30 @@
+#pragma once
+// The planner side of the plugin seam: reads the planner's `shape_estimators` parameter, e.g.
+//   shape_estimators: [{name: superellipsoid, type: fruit_shape_completion/SuperellipsoidEstimator}]
+// loads each with pluginlib, initialises it in <planner namespace>/<name>, and fills a
+// planner::ShapeEstimatorHost. The upstream roi_viewpoint_planner needs only this and the host:
+//   after its scan insertion: host.onView(view); before its ROI sampling: host.extraTargets().
+#include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/shape_estimator_plugin.h>
+
+#include <pluginlib/class_loader.hpp>
+
+#include <memory>
+
+namespace fruit_shape_completion {
+namespace ros_io {
+
+class ShapeEstimatorLoader {
+ public:
+  ShapeEstimatorLoader();
+  // Throws std::runtime_error with a clear message for a malformed list, an unknown plugin
+  // type or a plugin that refuses its parameters.
+  void load(ros::NodeHandle& planner_nh, const std::string& map_frame, planner::ShapeEstimatorHost* host);
+
+ private:
+  // Declared first, destroyed last: the plugin libraries outlive the plugins in the host.
+  pluginlib::ClassLoader<ShapeEstimatorPlugin> loader_;
+};
+
+}  // namespace ros_io
+}  // namespace fruit_shape_completion

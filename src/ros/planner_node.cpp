@@ -1,0 +1,194 @@
+// planner_node (node name roi_viewpoint_planner, as upstream): runs the viewpoint planner on a
+// simulated scene and hosts the shape-estimator plugins listed in ~shape_estimators. Publishes
+// the camera on tf (map frame -> camera), the ROI octree (~roi_octree) and the Old boxes
+// (~old_boxes) as markers, and the last full cloud (~scene_cloud). With ~live:=true it instead
+// takes fruit clouds (sensor_msgs/PointCloud2 on ~fruit_cloud) with the sensor pose from tf.
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/ros/fruit_publisher.h>
+#include <fruit_shape_completion/ros/shape_estimator_loader.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include <geometry_msgs/TransformStamped.h>
+#include <ros/ros.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <mutex>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+visualization_msgs::MarkerArray octreeMarkers(const planner::RoiOcTree& tree, const std::string& frame) {
+  visualization_msgs::MarkerArray arr;
+  visualization_msgs::Marker occ, roi;
+  for (auto* m : {&occ, &roi}) {
+    m->header.frame_id = frame;
+    m->header.stamp = ros::Time::now();
+    m->type = visualization_msgs::Marker::CUBE_LIST;
+    m->pose.orientation.w = 1;
+    m->scale.x = m->scale.y = m->scale.z = tree.getResolution();
+    m->color.a = 1.0f;
+  }
+  occ.ns = "occupied";
+  occ.color.r = occ.color.g = occ.color.b = 0.6f;
+  occ.color.a = 0.25f;
+  roi.ns = "roi";
+  roi.id = 1;
+  roi.color.r = 1.0f;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+    if (!tree.isNodeOccupied(*it)) continue;
+    geometry_msgs::Point p;
+    p.x = it.getX();
+    p.y = it.getY();
+    p.z = it.getZ();
+    (tree.isRoi(&*it) ? roi : occ).points.push_back(p);
+  }
+  arr.markers = {occ, roi};
+  return arr;
+}
+
+visualization_msgs::MarkerArray boxMarkers(const std::vector<planner::RoiCluster>& clusters, const std::string& frame) {
+  visualization_msgs::MarkerArray arr;
+  visualization_msgs::Marker clear;
+  clear.action = visualization_msgs::Marker::DELETEALL;
+  arr.markers.push_back(clear);
+  int id = 0;
+  for (const auto& c : clusters) {
+    visualization_msgs::Marker m;
+    m.header.frame_id = frame;
+    m.header.stamp = ros::Time::now();
+    m.ns = "old_boxes";
+    m.id = id++;
+    m.type = visualization_msgs::Marker::CUBE;
+    const Eigen::Vector3d ctr = c.center(), size = c.box_max - c.box_min;
+    m.pose.position.x = ctr.x();
+    m.pose.position.y = ctr.y();
+    m.pose.position.z = ctr.z();
+    m.pose.orientation.w = 1;
+    m.scale.x = std::max(size.x(), 1e-3);
+    m.scale.y = std::max(size.y(), 1e-3);
+    m.scale.z = std::max(size.z(), 1e-3);
+    m.color.b = 1.0f;
+    m.color.a = 0.3f;
+    arr.markers.push_back(m);
+  }
+  return arr;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "roi_viewpoint_planner");
+  ros::NodeHandle pnh("~");
+  std::string map_frame = "world", scene_spec = "procedural", sensor_frame = "camera";
+  double duration = 180.0, realtime_factor = 0.0;
+  int seed = 1;
+  bool shape_targets = true, live = false, exit_when_done = false;
+  pnh.param("map_frame", map_frame, map_frame);
+  pnh.param("scene", scene_spec, scene_spec);
+  pnh.param("duration", duration, duration);
+  pnh.param("seed", seed, seed);
+  pnh.param("shape_targets", shape_targets, shape_targets);
+  pnh.param("realtime_factor", realtime_factor, realtime_factor);
+  pnh.param("live", live, live);
+  pnh.param("sensor_frame", sensor_frame, sensor_frame);
+  pnh.param("exit_when_done", exit_when_done, exit_when_done);
+
+  planner::ShapeEstimatorHost host;
+  ros_io::ShapeEstimatorLoader loader;
+  try {
+    loader.load(pnh, map_frame, &host);
+  } catch (const std::exception& e) {
+    ROS_FATAL("%s", e.what());
+    return 1;
+  }
+
+  if (live) {
+    tf2_ros::Buffer buffer;
+    tf2_ros::TransformListener listener(buffer);
+    std::mutex mutex;  // views arrive on callback threads; the host is shared with the planner
+    const PointList none;
+    ros::Subscriber sub = pnh.subscribe<sensor_msgs::PointCloud2>("fruit_cloud", 2, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
+      PointList pts;
+      std::size_t bad = 0;
+      std::string err;
+      if (!ros_io::fromCloud(*msg, &pts, &bad, &err)) {
+        ROS_WARN("fruit_cloud skipped: %s", err.c_str());
+        return;
+      }
+      geometry_msgs::TransformStamped to_map, sensor;
+      try {
+        to_map = buffer.lookupTransform(map_frame, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2));
+        sensor = buffer.lookupTransform(map_frame, sensor_frame, msg->header.stamp, ros::Duration(0.2));
+      } catch (const tf2::TransformException& e) {
+        ROS_WARN("fruit_cloud skipped: no transform (%s)", e.what());
+        return;
+      }
+      const Eigen::Isometry3d T = tf2::transformToEigen(to_map);
+      for (auto& p : pts) p = T * p;
+      std::lock_guard<std::mutex> lock(mutex);
+      host.onView(planner::ViewData{pts, none, tf2::transformToEigen(sensor), msg->header.stamp.toSec()});
+    });
+    ros::AsyncSpinner spinner(2);
+    spinner.start();
+    ros::waitForShutdown();
+    return 0;
+  }
+
+  sim::Scene scene;
+  std::string err;
+  if (!sim::loadSceneSpec(scene_spec, &scene, &err)) {
+    ROS_FATAL("%s", err.c_str());
+    return 1;
+  }
+  std::vector<int> triangle_fruit;
+  planner::SceneTruth truth;
+  for (const auto& f : sim::computeFruitTruth(scene, &triangle_fruit)) {
+    truth.enclosed.push_back({f.center, f.volume});
+    truth.se.push_back({f.se.t, f.se_volume});
+  }
+  const sim::RgbdRenderer renderer(scene, triangle_fruit);
+  tf2_ros::TransformBroadcaster tf;
+  ros::Publisher octree_pub = pnh.advertise<visualization_msgs::MarkerArray>("roi_octree", 1, true);
+  ros::Publisher boxes_pub = pnh.advertise<visualization_msgs::MarkerArray>("old_boxes", 1, true);
+  ros::Publisher cloud_pub = pnh.advertise<sensor_msgs::PointCloud2>("scene_cloud", 1, true);
+  planner::PlannerParams params;
+  params.duration = duration;
+  params.seed = static_cast<unsigned>(seed);
+  params.shape_targets = shape_targets;
+  params.render_threads = 2;
+  ROS_INFO("planning on %s (%zu ground-truth fruits) for %.0f s", scene.name.c_str(), truth.enclosed.size(), duration);
+  const auto result = planner::runEpisode(scene, renderer, truth, host, params,
+      [&](const planner::ViewRecord& v, const planner::RoiOcTree& tree, const PinholeCamera& cam, const sim::FrameClouds& clouds) {
+        geometry_msgs::TransformStamped t;
+        t.header.stamp = ros::Time::now();
+        t.header.frame_id = map_frame;
+        t.child_frame_id = "camera";
+        t.transform.translation.x = cam.position.x();
+        t.transform.translation.y = cam.position.y();
+        t.transform.translation.z = cam.position.z();
+        const Eigen::Quaterniond q(cam.rotation);
+        t.transform.rotation.x = q.x();
+        t.transform.rotation.y = q.y();
+        t.transform.rotation.z = q.z();
+        t.transform.rotation.w = q.w();
+        tf.sendTransform(t);
+        octree_pub.publish(octreeMarkers(tree, map_frame));
+        boxes_pub.publish(boxMarkers(tree.roiClusters(10), map_frame));
+        cloud_pub.publish(ros_io::toCloud(clouds.full, map_frame, ros::Time::now()));
+        ROS_INFO("view %d at %.0f s: Old MA50 %d fruits, SE MA50 %d fruits (accuracy %.3f, centre %.2f cm)", v.view,
+                 v.time, v.old_true.ma50.fruits, v.se_true.ma50.fruits, v.se_true.ma50.accuracy,
+                 v.se_true.ma50.center_error_cm);
+        if (realtime_factor > 0) ros::Duration(params.view_cost / realtime_factor).sleep();
+        ros::spinOnce();
+        return ros::ok();
+      });
+  if (!result.message.empty()) ROS_WARN("%s", result.message.c_str());
+  ROS_INFO("episode done: %zu views", result.views.size());
+  if (!exit_when_done) ros::spin();
+  return 0;
+}

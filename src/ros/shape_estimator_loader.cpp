@@ -1,0 +1,45 @@
+#include <fruit_shape_completion/ros/shape_estimator_loader.h>
+
+#include <ros/ros.h>
+#include <xmlrpcpp/XmlRpcValue.h>
+
+#include <stdexcept>
+
+namespace fruit_shape_completion {
+namespace ros_io {
+
+ShapeEstimatorLoader::ShapeEstimatorLoader()
+    : loader_("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin") {}
+
+void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame, planner::ShapeEstimatorHost* host) {
+  XmlRpc::XmlRpcValue list;
+  if (!nh.getParam("shape_estimators", list)) {
+    ROS_INFO("no 'shape_estimators' parameter in %s: running without shape estimators", nh.getNamespace().c_str());
+    return;
+  }
+  if (list.getType() != XmlRpc::XmlRpcValue::TypeArray)
+    throw std::runtime_error(nh.resolveName("shape_estimators") + " must be a list of {name, type}");
+  for (int i = 0; i < list.size(); ++i) {
+    XmlRpc::XmlRpcValue& e = list[i];
+    if (e.getType() != XmlRpc::XmlRpcValue::TypeStruct || !e.hasMember("name") || !e.hasMember("type") ||
+        e["name"].getType() != XmlRpc::XmlRpcValue::TypeString || e["type"].getType() != XmlRpc::XmlRpcValue::TypeString)
+      throw std::runtime_error(nh.resolveName("shape_estimators") + "[" + std::to_string(i) +
+                               "] must be {name: NAME, type: PACKAGE/CLASS}");
+    const std::string name = e["name"], type = e["type"];
+    std::unique_ptr<ShapeEstimatorPlugin> plugin;
+    try {
+      plugin.reset(loader_.createUnmanagedInstance(type));
+    } catch (const pluginlib::PluginlibException& ex) {
+      std::string known;
+      for (const auto& c : loader_.getDeclaredClasses()) known += " " + c;
+      throw std::runtime_error("cannot load shape estimator '" + name + "' of type '" + type + "': " + ex.what() +
+                               " (known types:" + known + ")");
+    }
+    ros::NodeHandle plugin_nh(nh, name);
+    plugin->initialize(name, plugin_nh, map_frame);
+    host->add(std::move(plugin));
+  }
+}
+
+}  // namespace ros_io
+}  // namespace fruit_shape_completion

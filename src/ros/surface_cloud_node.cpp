@@ -1,0 +1,61 @@
+// surface_cloud_node: clustering and fitting only, for recorded data. Subscribes to a fruit
+// surface cloud (~surface_cloud, sensor_msgs/PointCloud2 in any frame with tf, e.g. voxblox's
+// surface_pointcloud) and publishes superellipsoids, fruit_markers, clusters, missing_surface
+// and tsdf_surface in its private namespace, in ~map_frame. Usable with rosbag play.
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/ros/estimator_params.h>
+#include <fruit_shape_completion/ros/fruit_publisher.h>
+
+#include <ros/ros.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/transform_listener.h>
+
+using namespace fruit_shape_completion;
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "surface_cloud_node");
+  ros::NodeHandle pnh("~");
+  std::string map_frame = "world";
+  pnh.param("map_frame", map_frame, map_frame);
+  std::unique_ptr<FruitShapePipeline> pipeline;
+  try {
+    // Fit parameters as for the plugin, from ~superellipsoid/ (config/shape_estimators.yaml).
+    pipeline = std::make_unique<FruitShapePipeline>(ros_io::readEstimatorParams(ros::NodeHandle(pnh, "superellipsoid")).pipeline);
+  } catch (const std::exception& e) {
+    ROS_FATAL("%s", e.what());
+    return 1;
+  }
+  ros_io::FruitPublisher publisher(pnh, map_frame);
+  tf2_ros::Buffer buffer;
+  tf2_ros::TransformListener listener(buffer);
+  ros::Subscriber sub = pnh.subscribe<sensor_msgs::PointCloud2>("surface_cloud", 2, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
+    PointList pts;
+    std::size_t bad = 0;
+    std::string err;
+    if (!ros_io::fromCloud(*msg, &pts, &bad, &err)) {
+      ROS_WARN("surface cloud skipped: %s", err.c_str());
+      return;
+    }
+    if (bad > 0) ROS_WARN("surface cloud: %zu NaN/Inf points skipped", bad);
+    if (pts.empty()) {
+      ROS_WARN("surface cloud skipped: no finite points");
+      return;
+    }
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != map_frame) {
+      try {
+        const Eigen::Isometry3d T = tf2::transformToEigen(
+            buffer.lookupTransform(map_frame, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2)));
+        for (auto& p : pts) p = T * p;
+      } catch (const tf2::TransformException& e) {
+        ROS_WARN("surface cloud skipped: no transform to %s (%s)", map_frame.c_str(), e.what());
+        return;
+      }
+    }
+    const auto& fruits = pipeline->update(pts);
+    publisher.publish(fruits, pts, msg->header.stamp);
+    ROS_INFO("surface cloud: %zu points, %d clusters, %d fruits accepted (%.1f ms)", pts.size(),
+             pipeline->lastStats().clusters, pipeline->lastStats().accepted, pipeline->lastStats().seconds * 1000);
+  });
+  ros::spin();
+  return 0;
+}
