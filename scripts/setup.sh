@@ -6,8 +6,10 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config
   catkin python3-catkin-pkg python3-empy
-  ros-base-dev pluginlib-dev librostest-dev libpcl-ros-dev
-  libeigen3-dev libceres-dev libpcl-dev liboctomap-dev
+  ros-base-dev pluginlib-dev librostest-dev python3-rostest ros-message-generation
+  libroscpp-dev libstd-msgs-dev libsensor-msgs-dev libgeometry-msgs-dev libvisualization-msgs-dev
+  libtf2-ros-dev libtf2-eigen-dev
+  libeigen3-dev libceres-dev liboctomap-dev
   libassimp-dev libembree-dev libyaml-cpp-dev libpng-dev
   libgtest-dev libbenchmark-dev
   python3-numpy python3-matplotlib

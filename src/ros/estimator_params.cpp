@@ -1,26 +1,22 @@
 #include <fruit_shape_completion/ros/estimator_params.h>
 
 #include <stdexcept>
+#include <type_traits>
 
 namespace fruit_shape_completion {
 namespace ros_io {
 
 namespace {
 
+// Present but of the wrong type (a string for a number, 0.5 for an integer) is an error, not
+// a silent fallback to the default.
 template <typename T>
 void read(const ros::NodeHandle& nh, const std::string& name, T& value) {
   if (!nh.hasParam(name)) return;
   T v;
   if (!nh.getParam(name, v))
-    throw std::runtime_error("parameter '" + nh.resolveName(name) + "' has the wrong type");
-  value = v;
-}
-
-void read(const ros::NodeHandle& nh, const std::string& name, int& value) {
-  if (!nh.hasParam(name)) return;
-  int v;
-  if (!nh.getParam(name, v))
-    throw std::runtime_error("parameter '" + nh.resolveName(name) + "' must be an integer");
+    throw std::runtime_error("parameter '" + nh.resolveName(name) + "' has the wrong type (expected " +
+                             (std::is_same<T, int>::value ? "an integer" : std::is_same<T, bool>::value ? "true/false" : "a number") + ")");
   value = v;
 }
 

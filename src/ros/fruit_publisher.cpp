@@ -176,13 +176,17 @@ void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const Poi
     arr.superellipsoids.push_back(m);
     missing.insert(missing.end(), f.missing_surface.begin(), f.missing_surface.end());
 
-    visualization_msgs::Marker mesh;
-    mesh.header = arr.header;
-    mesh.ns = "superellipsoid";
-    mesh.id = f.id;
-    mesh.type = visualization_msgs::Marker::TRIANGLE_LIST;
-    mesh.action = visualization_msgs::Marker::ADD;
-    mesh.pose.orientation.w = 1.0;
+    auto marker = [&](const char* ns, int type) {
+      visualization_msgs::Marker m;
+      m.header = arr.header;
+      m.ns = ns;
+      m.id = f.id;
+      m.type = type;
+      m.action = visualization_msgs::Marker::ADD;
+      m.pose.orientation.w = 1.0;
+      return m;
+    };
+    visualization_msgs::Marker mesh = marker("superellipsoid", visualization_msgs::Marker::TRIANGLE_LIST);
     mesh.scale.x = mesh.scale.y = mesh.scale.z = 1.0;
     mesh.color.r = color[0] / 255.f;
     mesh.color.g = color[1] / 255.f;
@@ -190,16 +194,10 @@ void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const Poi
     mesh.color.a = 0.6f;
     surfaceTriangles(s, &mesh.points);
     markers.markers.push_back(mesh);
-    visualization_msgs::Marker label;
-    label.header = arr.header;
-    label.ns = "label";
-    label.id = f.id;
-    label.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
-    label.action = visualization_msgs::Marker::ADD;
+    visualization_msgs::Marker label = marker("label", visualization_msgs::Marker::TEXT_VIEW_FACING);
     label.pose.position.x = s.t.x();
     label.pose.position.y = s.t.y();
     label.pose.position.z = s.t.z() + std::max({s.a, s.b, s.c}) + 0.02;
-    label.pose.orientation.w = 1.0;
     label.scale.z = 0.02;
     label.color.r = label.color.g = label.color.b = label.color.a = 1.0f;
     std::ostringstream os;

@@ -50,25 +50,34 @@ MeanStd meanStd(const std::vector<double>& v) {
   return m;
 }
 
+// Per trial: fruits of a subset, and its centre error and accuracy where it has fruits.
+struct SubsetSeries {
+  std::vector<double> fruits, error, accuracy;
+};
+SubsetSeries series(const std::vector<const Evaluation*>& evals, int s) {
+  SubsetSeries out;
+  for (const Evaluation* e : evals) {
+    const SubsetStats& st = subset(*e, s);
+    out.fruits.push_back(st.fruits);
+    if (st.fruits > 0) {
+      out.error.push_back(st.center_error_cm);
+      out.accuracy.push_back(st.accuracy);
+    }
+  }
+  return out;
+}
+
 // {"all": {"fruits": {...}, "center_error_cm": {...}, "accuracy": {...}}, "ma0": ..., "ma50": ...}
 std::string subsetsJson(const std::vector<const Evaluation*>& evals) {
   std::string out = "{";
   for (int s = 0; s < 3; ++s) {
-    std::vector<double> n, err, acc;
-    for (const Evaluation* e : evals) {
-      const SubsetStats& st = subset(*e, s);
-      n.push_back(st.fruits);
-      if (st.fruits > 0) {
-        err.push_back(st.center_error_cm);
-        acc.push_back(st.accuracy);
-      }
-    }
+    const SubsetSeries v = series(evals, s);
     auto ms = [](const std::vector<double>& v) {
       const MeanStd m = meanStd(v);
       return "{\"mean\": " + jsonNumber(m.mean) + ", \"std\": " + jsonNumber(m.std) + "}";
     };
-    out += std::string(s ? ", " : "") + "\"" + kSubsets[s] + "\": {\"fruits\": " + ms(n) +
-           ", \"center_error_cm\": " + ms(err) + ", \"accuracy\": " + ms(acc) + "}";
+    out += std::string(s ? ", " : "") + "\"" + kSubsets[s] + "\": {\"fruits\": " + ms(v.fruits) +
+           ", \"center_error_cm\": " + ms(v.error) + ", \"accuracy\": " + ms(v.accuracy) + "}";
   }
   return out + "}";
 }
@@ -78,17 +87,8 @@ void printTable(const char* title, const std::vector<const Evaluation*>& old_e, 
   std::printf("%-6s %-5s %14s %16s %16s\n", "", "", "fruits", "centre err [cm]", "volume acc");
   for (int s = 0; s < 3; ++s)
     for (int k = 0; k < 2; ++k) {
-      const auto& ev = k == 0 ? old_e : se_e;
-      std::vector<double> n, err, acc;
-      for (const Evaluation* e : ev) {
-        const SubsetStats& st = subset(*e, s);
-        n.push_back(st.fruits);
-        if (st.fruits > 0) {
-          err.push_back(st.center_error_cm);
-          acc.push_back(st.accuracy);
-        }
-      }
-      const MeanStd a = meanStd(n), b = meanStd(err), c = meanStd(acc);
+      const SubsetSeries v = series(k == 0 ? old_e : se_e, s);
+      const MeanStd a = meanStd(v.fruits), b = meanStd(v.error), c = meanStd(v.accuracy);
       std::printf("%-6s %-5s %7.1f +- %4.1f %9.2f +- %4.2f %9.3f +- %4.3f\n", k == 0 ? kSubsets[s] : "",
                   k == 0 ? "Old" : "SE", a.mean, a.std, b.mean, b.std, c.mean, c.std);
     }
