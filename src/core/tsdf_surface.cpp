@@ -31,7 +31,11 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
   const int n = map.voxelsPerSide();
   map.forEachBlock([&](const TsdfBlock& block) {
     const BlockView view{map, block, n};
-    for (std::uint32_t idx : block.observed) {
+    const std::size_t count = block.observed.size();
+    for (std::size_t k = 0; k < count; ++k) {
+      // The observed voxels are scattered over the block: fetch ahead to hide the misses.
+      if (k + 16 < count) __builtin_prefetch(&block.voxels[block.observed[k + 16]]);
+      const std::uint32_t idx = block.observed[k];
       const TsdfVoxel& v = block.voxels[idx];
       if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) continue;
       const int lx = idx % n, ly = (idx / n) % n, lz = idx / (n * n);
