@@ -3,7 +3,8 @@
 // map and created on demand, so memory follows what was seen (the voxblox layout; defaults
 // as the paper: 4 mm voxels, 64 voxels per block side).
 //
-// Not synchronised: one writer at a time (the plugin guards it with a mutex).
+// Not synchronised: const methods may run concurrently, updates need exclusive access (the
+// superellipsoid estimator guards its map with a mutex).
 #include <fruit_shape_completion/types.h>
 
 #include <cstdint>
@@ -104,9 +105,9 @@ class TsdfMap {
 
   TsdfMapParams params_;
   std::unordered_map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;
-  // One-entry cache: rays touch the same block many times in a row.
-  mutable std::uint64_t cached_key_ = ~0ull;
-  mutable TsdfBlock* cached_block_ = nullptr;
+  // One-entry cache for updates: rays touch the same block many times in a row.
+  std::uint64_t cached_key_ = ~0ull;
+  TsdfBlock* cached_block_ = nullptr;
 };
 
 }  // namespace fruit_shape_completion

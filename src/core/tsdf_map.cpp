@@ -72,21 +72,13 @@ std::uint64_t TsdfMap::blockKeyOf(const VoxelIndex& o) const {
 }
 
 const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
+  // No use of the update cache here: const lookups stay safe from concurrent readers.
   const VoxelIndex origin = blockOriginOf(v);
-  const std::uint64_t key = blockKeyOf(origin);
-  const TsdfBlock* block = nullptr;
-  if (key == cached_key_) {
-    block = cached_block_;
-  } else {
-    auto it = blocks_.find(key);
-    if (it == blocks_.end()) return nullptr;
-    block = it->second.get();
-    cached_key_ = key;
-    cached_block_ = it->second.get();
-  }
+  const auto it = blocks_.find(blockKeyOf(origin));
+  if (it == blocks_.end()) return nullptr;
   const VoxelIndex l = v - origin;
   const std::int64_t n = params_.voxels_per_side;
-  return &block->voxels[static_cast<std::size_t>(l.x() + n * (l.y() + n * l.z()))];
+  return &it->second->voxels[static_cast<std::size_t>(l.x() + n * (l.y() + n * l.z()))];
 }
 
 TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
