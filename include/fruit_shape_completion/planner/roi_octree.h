@@ -47,13 +47,14 @@ class RoiOcTree : public octomap::OccupancyOcTreeBase<RoiOcTreeNode> {
 
   // ROI log-odds steps and clamp (hit: log-odds of 0.7).
   float roi_hit = 0.847f, roi_miss = -0.4f, roi_min = -2.0f, roi_max = 3.5f;
+  float roi_threshold = 0.0f;  // ROI cells: occupied with ROI log-odds above this
 
   // Inserts a scan (world frame) from `origin`; is_fruit has one flag per point. Non-finite
   // points are skipped. Returns the number of points used.
   std::size_t insertScan(const PointList& points, const std::vector<char>& is_fruit,
                          const Eigen::Vector3d& origin, double max_range);
 
-  bool isRoi(const RoiOcTreeNode* n) const { return n && isNodeOccupied(n) && n->roiLogOdds() > 0.0f; }
+  bool isRoi(const RoiOcTreeNode* n) const { return n && isNodeOccupied(n) && n->roiLogOdds() > roi_threshold; }
   // Occupied ROI leaves at full depth, grouped by 26-connectivity; clusters smaller than
   // min_voxels are dropped.
   std::vector<RoiCluster> roiClusters(int min_voxels = 10) const;
