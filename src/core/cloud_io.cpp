@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cstring>
+#include <cstdint>
 #include <fstream>
+#include <new>
+#include <stdexcept>
 #include <sstream>
 
 namespace fruit_shape_completion {
@@ -126,8 +129,15 @@ CloudFile readPcd(const std::string& path) {
   if (counts.empty()) counts.assign(fields.size(), 1);
   if (sizes.size() != fields.size() || types.size() != fields.size() || counts.size() != fields.size())
     return fail(path, "malformed PCD header: FIELDS, SIZE, TYPE and COUNT differ in length");
+  // Header numbers are untrusted: bound them before they size anything.
+  constexpr long long kMaxPoints = 1LL << 32;
+  if (width < -1 || height < 0 || width > kMaxPoints || height > kMaxPoints)
+    return fail(path, "malformed PCD header: bad WIDTH or HEIGHT");
   if (points < 0) points = width >= 0 ? width * height : -1;
   if (points < 0) return fail(path, "malformed PCD header: no POINTS or WIDTH");
+  if (points > kMaxPoints) return fail(path, "malformed PCD header: implausible POINTS " + std::to_string(points));
+  for (int c : counts)
+    if (c > (1 << 16)) return fail(path, "malformed PCD header: implausible COUNT " + std::to_string(c));
   int ix = -1, iy = -1, iz = -1;
   size_t record = 0;
   std::vector<size_t> offset(fields.size());
@@ -151,6 +161,12 @@ CloudFile readPcd(const std::string& path) {
   }
   if (ix < 0 || iy < 0 || iz < 0) return fail(path, "PCD file has no x, y, z fields");
 
+  // Bytes left after the header, to refuse sizes the file cannot hold before allocating them.
+  const std::streampos data_start = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::uint64_t remaining = data_start < 0 ? 0 : static_cast<std::uint64_t>(in.tellg() - data_start);
+  in.seekg(data_start);
+
   CloudFile f;
   if (data == "ascii") {
     std::vector<double> vals(tokens);
@@ -167,6 +183,13 @@ CloudFile readPcd(const std::string& path) {
       f.points.emplace_back(vals[token[ix]], vals[token[iy]], vals[token[iz]]);
     }
   } else if (data == "binary") {
+    if (static_cast<std::uint64_t>(record) * static_cast<std::uint64_t>(points) > remaining) {
+      std::ostringstream os;
+      os << "truncated PCD data: the header says " << points << " points of " << record << " bytes, the file holds "
+         << remaining << " bytes";
+      return fail(path, os.str());
+    }
+    f.points.reserve(static_cast<size_t>(points));
     std::vector<unsigned char> buf(record);
     for (long long p = 0; p < points; ++p) {
       if (!in.read(reinterpret_cast<char*>(buf.data()), record)) {
@@ -185,6 +208,8 @@ CloudFile readPcd(const std::string& path) {
     const std::uint64_t expected = static_cast<std::uint64_t>(record) * points;
     if (sizes_hdr[1] != expected)
       return fail(path, "malformed PCD: compressed payload size does not match the header");
+    if (sizes_hdr[0] > remaining - std::min<std::uint64_t>(remaining, sizeof(sizes_hdr)))
+      return fail(path, "truncated PCD compressed data: the file is shorter than its compressed size");
     std::vector<unsigned char> packed(sizes_hdr[0]), raw(sizes_hdr[1]);
     if (!in.read(reinterpret_cast<char*>(packed.data()), packed.size()))
       return fail(path, "truncated PCD compressed data");
@@ -340,9 +365,15 @@ CloudFile readPointCloud(const std::string& path) {
     if (!probe) return fail(path, "cannot open file");
   }
   const std::string ext = extensionOf(path);
-  if (ext == "pcd") return readPcd(path);
-  if (ext == "ply") return readPly(path);
-  return readText(path);
+  try {
+    if (ext == "pcd") return readPcd(path);
+    if (ext == "ply") return readPly(path);
+    return readText(path);
+  } catch (const std::bad_alloc&) {
+    return fail(path, "out of memory while reading (is the file's header plausible?)");
+  } catch (const std::length_error&) {
+    return fail(path, "the file's sizes are beyond what can be allocated");
+  }
 }
 
 bool writePly(const std::string& path, const PointList& points,

@@ -214,7 +214,7 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
   ceres::Solve(options, &problem, &summary);
   sol.cost = summary.final_cost;
   sol.converged = summary.termination_type == ceres::CONVERGENCE;
-  sol.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  sol.iterations = std::max(0, static_cast<int>(summary.iterations.size()) - 1);
   sol.message = summary.message;
 }
 

@@ -142,6 +142,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     if (outlier[i]) continue;
     const Eigen::Vector3d& p = ends[i];
     const double range = (p - origin).norm();
+    if (!(range > 0.0)) continue;  // a point at the sensor has no ray direction
     const Eigen::Vector3d dir = (p - origin) / range;
     double w_ray = merged[i].count;
     // Behind the surface a grazing ray soon leaves a curved fruit again; the voxels it would

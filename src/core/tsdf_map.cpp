@@ -22,8 +22,9 @@ constexpr char kMagic[8] = {'F', 'S', 'C', 'T', 'S', 'D', 'F', '1'};
 }  // namespace
 
 void TsdfMapParams::validate() const {
-  if (!(voxel_size > 0.0) || !std::isfinite(voxel_size))
-    throw std::invalid_argument("tsdf voxel_size must be a finite value > 0");
+  // Bounded so voxel indices of any point within +-1000 km stay far from int64 overflow.
+  if (!(voxel_size >= 1e-4 && voxel_size <= 10.0))
+    throw std::invalid_argument("tsdf voxel_size must be in [0.0001, 10] m");
   if (voxels_per_side < 1 || voxels_per_side > 512)
     throw std::invalid_argument("tsdf voxels_per_side must be in 1..512");
   if (max_blocks < 1) throw std::invalid_argument("tsdf max_blocks must be >= 1");
@@ -193,31 +194,38 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
   }
   if (count > static_cast<std::uint64_t>(p.max_blocks))
     return fail("file holds more blocks than max_blocks allows");
-  TsdfMap loaded(p);
-  const std::uint64_t voxels = static_cast<std::uint64_t>(vps) * vps * vps;
-  for (std::uint64_t b = 0; b < count; ++b) {
-    std::int64_t origin[3];
-    std::uint32_t n = 0;
-    if (!get(origin, sizeof(origin)) || !get(&n, 4)) return fail("truncated block header");
-    if (n > voxels) return fail("block lists more voxels than it has");
-    for (int k = 0; k < 3; ++k)
-      if (origin[k] % static_cast<std::int64_t>(vps) != 0) return fail("misaligned block origin");
-    for (std::uint32_t i = 0; i < n; ++i) {
-      std::uint32_t idx;
-      TsdfVoxel v;
-      if (!get(&idx, 4) || !get(&v.distance, 4) || !get(&v.weight, 4)) return fail("truncated voxel data");
-      if (idx >= voxels || !std::isfinite(v.distance) || !(v.weight > 0.0f) || !std::isfinite(v.weight))
-        return fail("corrupt voxel data");
-      const VoxelIndex g(origin[0] + idx % vps, origin[1] + (idx / vps) % vps, origin[2] + idx / (vps * vps));
-      if (!loaded.setVoxel(g, v)) return fail("voxel outside the crop box or block limit");
+  try {
+    TsdfMap loaded(p);
+    const std::uint64_t voxels = static_cast<std::uint64_t>(vps) * vps * vps;
+    constexpr std::int64_t kMaxOrigin = std::int64_t(1) << 40;  // in voxels; real maps are far smaller
+    for (std::uint64_t b = 0; b < count; ++b) {
+      std::int64_t origin[3];
+      std::uint32_t n = 0;
+      if (!get(origin, sizeof(origin)) || !get(&n, 4)) return fail("truncated block header");
+      if (n > voxels) return fail("block lists more voxels than it has");
+      for (int k = 0; k < 3; ++k) {
+        if (origin[k] > kMaxOrigin || origin[k] < -kMaxOrigin) return fail("block origin out of range");
+        if (origin[k] % static_cast<std::int64_t>(vps) != 0) return fail("misaligned block origin");
+      }
+      for (std::uint32_t i = 0; i < n; ++i) {
+        std::uint32_t idx;
+        TsdfVoxel v;
+        if (!get(&idx, 4) || !get(&v.distance, 4) || !get(&v.weight, 4)) return fail("truncated voxel data");
+        if (idx >= voxels || !std::isfinite(v.distance) || !(v.weight > 0.0f) || !std::isfinite(v.weight))
+          return fail("corrupt voxel data");
+        const VoxelIndex g(origin[0] + idx % vps, origin[1] + (idx / vps) % vps, origin[2] + idx / (vps * vps));
+        if (!loaded.setVoxel(g, v)) return fail("voxel outside the crop box or block limit");
+      }
     }
+    for (auto& kv : loaded.blocks_) kv.second->sortObserved();
+    blocks_.swap(loaded.blocks_);
+    params_ = p;
+    cached_key_ = ~0ull;
+    cached_block_ = nullptr;
+    return true;
+  } catch (const std::bad_alloc&) {
+    return fail("out of memory while loading; the map in memory is unchanged");
   }
-  for (auto& kv : loaded.blocks_) kv.second->sortObserved();
-  blocks_.swap(loaded.blocks_);
-  params_ = p;
-  cached_key_ = ~0ull;
-  cached_block_ = nullptr;
-  return true;
 }
 
 }  // namespace fruit_shape_completion

@@ -51,6 +51,11 @@ std::size_t RoiOcTree::insertScan(const PointList& points, const std::vector<cha
   for (const auto& kv : endpoint_fruit) {
     RoiOcTreeNode* n = search(kv.first);
     if (n == nullptr) continue;
+    // search() may return a pruned inner node standing for many voxels; setting the same value
+    // again expands it down to the single voxel (lazy: no re-pruning), so only that voxel's ROI
+    // changes.
+    n = setNodeValue(kv.first, n->getLogOdds(), true);
+    if (n == nullptr) continue;
     const float v = n->roiLogOdds() + (kv.second ? roi_hit : roi_miss);
     n->setRoiLogOdds(std::min(roi_max, std::max(roi_min, v)));
   }

@@ -43,9 +43,23 @@ PointList ShapeEstimatorHost::extraTargets() const {
         if (p.allFinite()) all.push_back(p);
     } catch (const std::exception& e) {
       fail(i, e.what());
+    } catch (...) {
+      fail(i, "unknown exception");
     }
   }
   return all;
+}
+
+std::vector<EstimatedFruit> ShapeEstimatorHost::fruits(std::size_t i) const {
+  if (!enabled(i)) return {};
+  try {
+    return estimators_[i]->fruits();
+  } catch (const std::exception& e) {
+    fail(i, e.what());
+  } catch (...) {
+    fail(i, "unknown exception");
+  }
+  return {};
 }
 
 void ShapeEstimatorHost::reset() {
@@ -55,6 +69,8 @@ void ShapeEstimatorHost::reset() {
       enabled_[i] = 1;
     } catch (const std::exception& e) {
       fail(i, e.what());
+    } catch (...) {
+      fail(i, "unknown exception");
     }
   }
 }

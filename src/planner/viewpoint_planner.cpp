@@ -58,11 +58,34 @@ double viewGain(const RoiOcTree& tree, const PinholeCamera& cam, const PlannerPa
 
 }  // namespace
 
+std::string PlannerParams::problem() const {
+  auto finite_pos = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!(std::isfinite(duration) && duration >= 0.0)) return "duration must be >= 0";
+  if (!finite_pos(view_cost)) return "view_cost must be > 0";
+  if (!finite_pos(speed)) return "speed must be > 0";
+  if (!finite_pos(min_view_distance) || !(max_view_distance >= min_view_distance) || !std::isfinite(max_view_distance))
+    return "view distances must satisfy 0 < min_view_distance <= max_view_distance";
+  if (candidates < 1) return "candidates must be >= 1";
+  if (utility_rays_x < 1 || utility_rays_y < 1) return "utility_rays_x/y must be >= 1";
+  if (!finite_pos(utility_range)) return "utility_range must be > 0";
+  if (!(std::isfinite(travel_weight) && travel_weight >= 0.0)) return "travel_weight must be >= 0";
+  if (octree_pixel_step < 1) return "octree_pixel_step must be >= 1";
+  if (!finite_pos(octree_max_range)) return "octree_max_range must be > 0";
+  if (!(std::isfinite(clearance) && clearance >= 0.0)) return "clearance must be >= 0";
+  if (render_threads < 1) return "render_threads must be >= 1";
+  return {};
+}
+
 EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
                          const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& p,
                          const ViewCallback& on_view) {
   EpisodeResult result;
   result.truth_fruits = static_cast<int>(truth.enclosed.size());
+  const std::string bad = p.problem();
+  if (!bad.empty()) {
+    result.message = "bad planner parameters: " + bad + "; no views taken";
+    return result;
+  }
   if (!scene.workspace.contains(scene.camera_start_position)) {
     std::ostringstream os;
     os << "camera start (" << scene.camera_start_position.transpose()
@@ -122,7 +145,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     rec.position = pos;
     std::vector<EstimatedFruit> old_fruits, se_fruits;
     for (const auto& c : tree.roiClusters(10)) old_fruits.push_back({-1, c.center(), c.volume()});
-    if (!host.estimators().empty() && host.enabled(0)) se_fruits = host.estimators()[0]->fruits();
+    se_fruits = host.fruits(0);
     rec.old_true = evaluate(old_fruits, truth.enclosed);
     rec.se_true = evaluate(se_fruits, truth.enclosed);
     rec.old_se = evaluate(old_fruits, truth.se);

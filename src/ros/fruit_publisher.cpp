@@ -43,12 +43,13 @@ sensor_msgs::PointCloud2 toCloud(const PointList& points, const std::string& fra
 bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size_t* non_finite, std::string* error) {
   points->clear();
   *non_finite = 0;
-  int off[3] = {-1, -1, -1}, type[3] = {0, 0, 0};
+  std::int64_t off[3] = {-1, -1, -1};
+  int type[3] = {0, 0, 0};
   const char* names[3] = {"x", "y", "z"};
   for (const auto& f : msg.fields)
     for (int k = 0; k < 3; ++k)
       if (f.name == names[k]) {
-        off[k] = static_cast<int>(f.offset);
+        off[k] = f.offset;
         type[k] = f.datatype;
       }
   for (int k = 0; k < 3; ++k) {
@@ -61,14 +62,19 @@ bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size
       return false;
     }
   }
-  const std::size_t n = static_cast<std::size_t>(msg.width) * msg.height;
-  if (msg.point_step == 0 || msg.row_step < msg.width * msg.point_step ||
-      msg.data.size() < static_cast<std::size_t>(msg.row_step) * msg.height) {
+  if (msg.is_bigendian) {
+    *error = "big-endian clouds are not supported";
+    return false;
+  }
+  // 64-bit products: a lying header must not wrap around and pass the size check.
+  const std::uint64_t n = static_cast<std::uint64_t>(msg.width) * msg.height;
+  if (msg.point_step == 0 || static_cast<std::uint64_t>(msg.row_step) < static_cast<std::uint64_t>(msg.width) * msg.point_step ||
+      static_cast<std::uint64_t>(msg.data.size()) < static_cast<std::uint64_t>(msg.row_step) * msg.height) {
     *error = "cloud data is shorter than its width, height and steps say";
     return false;
   }
   for (int k = 0; k < 3; ++k)
-    if (off[k] + (type[k] == sensor_msgs::PointField::FLOAT64 ? 8u : 4u) > msg.point_step) {
+    if (static_cast<std::uint64_t>(off[k]) + (type[k] == sensor_msgs::PointField::FLOAT64 ? 8u : 4u) > msg.point_step) {
       *error = "cloud fields lie outside the point step";
       return false;
     }

@@ -98,10 +98,10 @@ int main(int argc, char** argv) {
   pnh.param("sensor_frame", sensor_frame, sensor_frame);
   pnh.param("exit_when_done", exit_when_done, exit_when_done);
 
-  planner::ShapeEstimatorHost host;
   ros_io::ShapeEstimatorLoader loader;
+  planner::ShapeEstimatorHost& host = loader.host();
   try {
-    loader.load(pnh, map_frame, &host);
+    loader.load(pnh, map_frame);
   } catch (const std::exception& e) {
     ROS_FATAL("%s", e.what());
     return 1;

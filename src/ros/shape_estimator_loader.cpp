@@ -11,7 +11,7 @@ namespace ros_io {
 ShapeEstimatorLoader::ShapeEstimatorLoader()
     : loader_("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin") {}
 
-void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame, planner::ShapeEstimatorHost* host) {
+void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame) {
   XmlRpc::XmlRpcValue list;
   if (!nh.getParam("shape_estimators", list)) {
     ROS_INFO("no 'shape_estimators' parameter in %s: running without shape estimators", nh.getNamespace().c_str());
@@ -37,7 +37,7 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
     }
     ros::NodeHandle plugin_nh(nh, name);
     plugin->initialize(name, plugin_nh, map_frame);
-    host->add(std::move(plugin));
+    host_.add(std::move(plugin));
   }
 }
 

@@ -168,6 +168,25 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
                       std::string(reinterpret_cast<const char*>(sizes), 8) + lzf.substr(0, 20));
   f = readPointCloud(path);
   EXPECT_FALSE(f.ok());
+  // Lying headers: sizes the file cannot hold are refused before anything is allocated for them.
+  const std::string lying[] = {
+      "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4000000000\nHEIGHT 1\nPOINTS 4000000000\nDATA binary\n",
+      "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 2000000000\nPOINTS 1\nDATA binary\n",
+      "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT -2\nDATA binary\n",
+      "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 99999999999999\nDATA ascii\n1 2 3\n",
+  };
+  for (const auto& text : lying) {
+    writeFile(path, text + std::string(64, '\0'));
+    f = readPointCloud(path);
+    EXPECT_FALSE(f.ok()) << text;
+    EXPECT_FALSE(f.error.empty());
+  }
+  // A compressed size larger than the file.
+  const std::uint32_t big[2] = {0xfffffff0u, static_cast<std::uint32_t>(raw.size())};
+  writeFile(path, header + "DATA binary_compressed\n" + std::string(reinterpret_cast<const char*>(big), 8) + lzf);
+  f = readPointCloud(path);
+  EXPECT_FALSE(f.ok());
+  EXPECT_NE(f.error.find("shorter"), std::string::npos) << f.error;
   std::remove(path.c_str());
 }
 

@@ -5,6 +5,7 @@
 #include <fruit_shape_completion/tsdf_surface.h>
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <limits>
@@ -226,6 +227,31 @@ TEST(TsdfMap, SaveAndLoadRestoreTheMapAndRefuseBrokenFiles) {
   std::ofstream(path) << "hello";
   EXPECT_FALSE(loaded.load(path, &err));
   EXPECT_NE(err.find("magic"), std::string::npos) << err;
+  // A header with an absurd voxel size, and a block far beyond any real map: refused.
+  {
+    TsdfMap far;
+    TsdfVoxel v;
+    v.distance = 0.0f;
+    v.weight = 1.0f;
+    ASSERT_TRUE(far.setVoxel(VoxelIndex(1, 2, 3), v));
+    ASSERT_TRUE(far.save(path, &err)) << err;
+    std::fstream io(path, std::ios::in | std::ios::out | std::ios::binary);
+    // header: magic 8, version 4, voxel size 8, vps 4, count 8; then the block origin (3 x int64)
+    const std::int64_t huge = std::int64_t(1) << 50;
+    io.seekp(8 + 4 + 8 + 4 + 8);
+    io.write(reinterpret_cast<const char*>(&huge), 8);
+    io.close();
+    EXPECT_FALSE(loaded.load(path, &err));
+    EXPECT_NE(err.find("out of range"), std::string::npos) << err;
+    ASSERT_TRUE(far.save(path, &err)) << err;
+    std::fstream io2(path, std::ios::in | std::ios::out | std::ios::binary);
+    const double tiny = 1e-300;
+    io2.seekp(8 + 4);
+    io2.write(reinterpret_cast<const char*>(&tiny), 8);
+    io2.close();
+    EXPECT_FALSE(loaded.load(path, &err));
+    EXPECT_NE(err.find("voxel_size"), std::string::npos) << err;
+  }
   EXPECT_EQ(loaded.observedVoxelCount(), before);
   std::remove(path.c_str());
 }

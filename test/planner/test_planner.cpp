@@ -88,6 +88,25 @@ TEST(RoiOcTree, ScanMarksFreeOccupiedAndRoiCells) {
   std::vector<char> none(pts.size(), 0);
   for (int i = 0; i < 4; ++i) tree.insertScan(pts, none, Eigen::Vector3d(0, 0, 0.5), 3.0);
   EXPECT_TRUE(tree.roiClusters(10).empty());
+  // A fruit hit inside a pruned region (a solid block seen often enough that its voxels are
+  // all clamped and alike) changes that one voxel's ROI only, not the whole pruned node's.
+  {
+    RoiOcTree t(0.01);
+    PointList cube;
+    for (int x = 0; x < 8; ++x)
+      for (int y = 0; y < 8; ++y)
+        for (int z = 0; z < 8; ++z) cube.emplace_back(0.8 + 0.01 * x + 0.005, 0.01 * y + 0.005, 0.48 + 0.01 * z + 0.005);
+    for (int i = 0; i < 12; ++i) t.insertScan(cube, std::vector<char>(cube.size(), 0), Eigen::Vector3d(0, 0, 0.5), 3.0);
+    t.prune();
+    const Eigen::Vector3d hit = cube[0];
+    t.insertScan({hit}, {1}, Eigen::Vector3d(0, 0, 0.5), 3.0);
+    const RoiOcTreeNode* n = t.search(hit.x(), hit.y(), hit.z());
+    ASSERT_NE(n, nullptr);
+    EXPECT_FLOAT_EQ(n->roiLogOdds(), t.roi_min + t.roi_hit);
+    const RoiOcTreeNode* m = t.search(hit.x() + 0.01, hit.y() + 0.01, hit.z() + 0.01);
+    ASSERT_NE(m, nullptr);
+    EXPECT_FLOAT_EQ(m->roiLogOdds(), t.roi_min) << "a neighbour of the hit voxel took its ROI";
+  }
   // Bad input: a NaN origin or NaN points change nothing and do not crash.
   EXPECT_EQ(tree.insertScan(pts, fruit, Eigen::Vector3d(NAN, 0, 0), 3.0), 0u);
   EXPECT_EQ(tree.insertScan({Eigen::Vector3d(NAN, 0, 0)}, {1}, Eigen::Vector3d::Zero(), 3.0), 0u);
@@ -198,6 +217,14 @@ TEST(ViewpointPlanner, BadScenesGiveAMessageAndAValidResult) {
   SimulatedScene s("procedural:4");
   PlannerParams p;
   p.duration = 20;
+  {  // unusable parameters
+    PlannerParams bad = p;
+    bad.octree_pixel_step = 0;
+    ShapeEstimatorHost host;
+    const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, bad);
+    EXPECT_TRUE(r.views.empty());
+    EXPECT_NE(r.message.find("octree_pixel_step"), std::string::npos) << r.message;
+  }
   {  // camera start outside the workspace
     sim::Scene outside = s.scene;
     outside.camera_start_position = Eigen::Vector3d(50, 50, 50);

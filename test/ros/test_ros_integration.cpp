@@ -61,10 +61,9 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
   list[0]["name"] = "shape";
   list[0]["type"] = "fruit_shape_completion/NoSuchEstimator";
   nh.setParam("shape_estimators", list);
-  planner::ShapeEstimatorHost host;
   ros_io::ShapeEstimatorLoader loader;
   try {
-    loader.load(nh, "world", &host);
+    loader.load(nh, "world");
     FAIL() << "an unknown plugin type must throw";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("NoSuchEstimator"), std::string::npos) << e.what();
@@ -75,13 +74,40 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
   bad.setParam("shape_estimators", list);
   bad.setParam("shape/alpha", -1.0);
   try {
-    loader.load(bad, "world", &host);
+    loader.load(bad, "world");
     FAIL() << "a bad parameter must throw";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("alpha"), std::string::npos) << e.what();
   }
   bad.setParam("shape/alpha", "not a number");
-  EXPECT_THROW(loader.load(bad, "world", &host), std::runtime_error);
+  EXPECT_THROW(loader.load(bad, "world"), std::runtime_error);
+}
+
+TEST(FruitPublisher, CloudsRoundTripAndLyingHeadersAreRefused) {
+  const PointList pts = {Eigen::Vector3d(0.1, 0.2, 0.3), Eigen::Vector3d(-1, 2, -3)};
+  const sensor_msgs::PointCloud2 good = ros_io::toCloud(pts, "world", ros::Time(0));
+  PointList back;
+  std::size_t non_finite = 0;
+  std::string err;
+  ASSERT_TRUE(ros_io::fromCloud(good, &back, &non_finite, &err)) << err;
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_LT((back[1] - pts[1]).norm(), 1e-6);
+  // width * point_step wraps around 32 bits: must not pass the size check.
+  sensor_msgs::PointCloud2 wrap = good;
+  wrap.width = 0x40000000u;
+  wrap.height = 1;
+  wrap.point_step = 16;
+  wrap.row_step = 0;  // what 0x40000000 * 16 is in 32-bit arithmetic
+  EXPECT_FALSE(ros_io::fromCloud(wrap, &back, &non_finite, &err));
+  EXPECT_FALSE(err.empty());
+  sensor_msgs::PointCloud2 tall = good;
+  tall.height = 0x10000u;
+  tall.row_step = 0x10000u;  // row_step * height wraps to 0 in 32 bits
+  EXPECT_FALSE(ros_io::fromCloud(tall, &back, &non_finite, &err));
+  sensor_msgs::PointCloud2 big_endian = good;
+  big_endian.is_bigendian = true;
+  EXPECT_FALSE(ros_io::fromCloud(big_endian, &back, &non_finite, &err));
+  EXPECT_NE(err.find("big-endian"), std::string::npos) << err;
 }
 
 TEST(SurfaceCloudNode, SkipsBadCloudsAndFitsGoodOnes) {

@@ -45,6 +45,8 @@ class ShapeEstimatorHost {
   // Insert + update of every enabled estimator.
   void onView(const ViewData& view);
   PointList extraTargets() const;
+  // Fruits of estimator i; empty (and the estimator disabled) if it throws.
+  std::vector<EstimatedFruit> fruits(std::size_t i) const;
   const std::vector<std::unique_ptr<ShapeEstimator>>& estimators() const { return estimators_; }
   bool enabled(std::size_t i) const { return i < enabled_.size() && enabled_[i]; }
   const std::vector<std::string>& errors() const { return errors_; }

@@ -33,6 +33,8 @@ struct PlannerParams {
   unsigned seed = 1;
   int render_threads = 1;
   bool depth_noise = true;
+  // Empty if usable, else what is wrong (runEpisode refuses to start with it).
+  std::string problem() const;
 };
 
 struct ViewRecord {

@@ -1,9 +1,9 @@
 #pragma once
 // The planner side of the plugin seam: reads the planner's `shape_estimators` parameter, e.g.
 //   shape_estimators: [{name: superellipsoid, type: fruit_shape_completion/SuperellipsoidEstimator}]
-// loads each with pluginlib, initialises it in <planner namespace>/<name>, and fills a
-// planner::ShapeEstimatorHost. The upstream roi_viewpoint_planner needs only this and the host:
-//   after its scan insertion: host.onView(view); before its ROI sampling: host.extraTargets().
+// loads each with pluginlib, initialises it in <planner namespace>/<name>, and adds it to the
+// planner::ShapeEstimatorHost it owns. The upstream roi_viewpoint_planner needs only this and the
+// host: after its scan insertion: host().onView(view); before its ROI sampling: host().extraTargets().
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/shape_estimator_plugin.h>
 
@@ -19,11 +19,15 @@ class ShapeEstimatorLoader {
   ShapeEstimatorLoader();
   // Throws std::runtime_error with a clear message for a malformed list, an unknown plugin
   // type or a plugin that refuses its parameters.
-  void load(ros::NodeHandle& planner_nh, const std::string& map_frame, planner::ShapeEstimatorHost* host);
+  void load(ros::NodeHandle& planner_nh, const std::string& map_frame);
+  planner::ShapeEstimatorHost& host() { return host_; }
 
  private:
-  // Declared first, destroyed last: the plugin libraries outlive the plugins in the host.
+  // Order matters: members are destroyed in reverse, so the plugins (in host_) are destroyed
+  // before the class loader unloads their libraries. Owning the host makes that impossible to get
+  // wrong from outside.
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader_;
+  planner::ShapeEstimatorHost host_;
 };
 
 }  // namespace ros_io
