@@ -1,8 +1,10 @@
 #pragma once
 // A uniform hash grid over a point list for fixed-radius neighbour queries. With the cell size
-// equal to the query radius a query visits the 8 cells its sphere overlaps; cheaper to build
-// than a k-d tree and exact for the radius searches of clustering, normals and the
+// equal to the query radius a query looks up the (at most 27) cells its box overlaps; cheaper
+// to build than a k-d tree and exact for the radius searches of clustering, normals and the
 // missing-surface test. Points are stored cell by cell, so a query reads contiguous memory.
+// For a neighbourhood pass over all points, forEachCell() shares the 27 lookups among all
+// points of a cell.
 #include <fruit_shape_completion/flat_hash_map.h>
 #include <fruit_shape_completion/types.h>
 
@@ -28,6 +30,21 @@ class SpatialHashGrid {
 
   double cellSize() const { return cell_; }
 
+  // The occupied cells in grid order; cell c holds the stored points [begin, end).
+  struct Cell {
+    std::int64_t x, y, z;
+    int begin, end;
+  };
+  const std::vector<Cell>& cells() const { return cell_list_; }
+  // Stored point k (points are stored cell by cell) and its index in the original list.
+  const Point& storedPoint(int k) const { return sorted_[k]; }
+  int originalIndex(int k) const { return index_[k]; }
+  // Calls visit(cell, ranges, n) for cells [first, last) of cells(), with the [begin, end)
+  // ranges of the n occupied cells among it and its 26 neighbours. Every point within the
+  // cell size of a point of the cell lies in those ranges.
+  template <typename Visit>
+  void forEachCell(std::size_t first, std::size_t last, Visit&& visit) const;
+
   static std::uint64_t packKey(std::int64_t x, std::int64_t y, std::int64_t z) {
     // 21 bits per axis: +-1 million cells, i.e. +-10 km at 1 cm.
     const std::uint64_t mask = (1ull << 21) - 1;
@@ -36,13 +53,31 @@ class SpatialHashGrid {
   }
 
  private:
+  std::int64_t cellOf(double v) const { return static_cast<std::int64_t>(std::floor(v * inv_cell_)); }
   double cell_;
   double inv_cell_;
   // Cell key -> [begin, end) range into sorted_ / index_.
   FlatHashMap<std::pair<int, int>> cells_;
   PointList sorted_;         // points grouped by cell
   std::vector<int> index_;   // original index of each sorted point
+  std::vector<Cell> cell_list_;
 };
+
+template <typename Visit>
+void SpatialHashGrid::forEachCell(std::size_t first, std::size_t last, Visit&& visit) const {
+  std::pair<int, int> ranges[27];
+  for (std::size_t c = first; c < last && c < cell_list_.size(); ++c) {
+    const Cell& cell = cell_list_[c];
+    int n = 0;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const std::pair<int, int>* r = cells_.find(packKey(cell.x + dx, cell.y + dy, cell.z + dz));
+          if (r != nullptr) ranges[n++] = *r;
+        }
+    visit(cell, ranges, n);
+  }
+}
 
 template <typename Visit>
 bool SpatialHashGrid::visitWithin(const Point& p, double radius, Visit&& visit) const {

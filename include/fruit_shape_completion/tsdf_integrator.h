@@ -31,6 +31,9 @@ struct TsdfIntegratorParams {
   bool remove_outliers = true;    // statistical outlier removal of the (voxel-merged) cloud
   OutlierFilterParams outliers;
   std::size_t max_points = 2000000;  // larger clouds are refused whole (6 VGA frames)
+  // Threads for the neighbourhood pass (outlier statistics, normals) of large clouds (>= 20 k
+  // merged points). 1 inside the planner, which runs its own threads.
+  int threads = 1;
   void validate() const;  // throws std::invalid_argument
 };
 

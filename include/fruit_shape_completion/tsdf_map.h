@@ -40,6 +40,7 @@ using VoxelIndex = Eigen::Matrix<std::int64_t, 3, 1>;
 struct TsdfBlock {
   explicit TsdfBlock(const VoxelIndex& origin, int voxels_per_side);
   VoxelIndex origin;  // global index of the block's first voxel
+  std::uint32_t voxel_count;  // voxels_per_side^3
   // voxels_per_side^3, x fastest. calloc'd: the OS hands out zero pages on first touch, so
   // the untouched part of a block (most of it: fruit surfaces are thin) costs no time.
   std::unique_ptr<TsdfVoxel[], void (*)(void*)> voxels;

@@ -12,10 +12,7 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
   for (int i = 0; i < static_cast<int>(points.size()); ++i) {
     const Point& p = points[i];
     if (!p.allFinite()) continue;
-    keyed.emplace_back(packKey(static_cast<std::int64_t>(std::floor(p.x() * inv_cell_)),
-                               static_cast<std::int64_t>(std::floor(p.y() * inv_cell_)),
-                               static_cast<std::int64_t>(std::floor(p.z() * inv_cell_))),
-                       i);
+    keyed.emplace_back(packKey(cellOf(p.x()), cellOf(p.y()), cellOf(p.z())), i);
   }
   std::sort(keyed.begin(), keyed.end());
   sorted_.resize(keyed.size());
@@ -27,6 +24,8 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
       sorted_[j] = points[keyed[j].second];
     }
     *cells_.insert(keyed[i].first).first = std::make_pair(static_cast<int>(i), static_cast<int>(j));
+    const Point& p = sorted_[i];
+    cell_list_.push_back({cellOf(p.x()), cellOf(p.y()), cellOf(p.z()), static_cast<int>(i), static_cast<int>(j)});
     i = j;
   }
 }

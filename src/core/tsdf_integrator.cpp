@@ -8,6 +8,8 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <system_error>
+#include <thread>
 
 namespace fruit_shape_completion {
 
@@ -19,6 +21,7 @@ void TsdfIntegratorParams::validate() const {
   if (!(min_range >= 0.0) || !(max_range > min_range) || !std::isfinite(max_range))
     throw std::invalid_argument("tsdf ranges must satisfy 0 <= min_range < max_range");
   if (max_points < 1) throw std::invalid_argument("tsdf max_points must be >= 1");
+  if (threads < 1 || threads > 64) throw std::invalid_argument("tsdf threads must be in 1..64");
   if (remove_outliers) outliers.validate();
 }
 
@@ -75,6 +78,8 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   const double max_r2 = params_.max_range * params_.max_range;
   Eigen::Isometry3d to_sensor = Eigen::Isometry3d::Identity();
   if (pose != nullptr) to_sensor = pose->inverse();
+  std::uint64_t last_key = ~0ull;
+  int last_slot = -1;
   for (const auto& p : points) {
     if (!p.allFinite()) {
       ++report.non_finite;
@@ -87,12 +92,18 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     }
     const VoxelIndex v = map.voxelIndexOf(p);
     const auto key = SpatialHashGrid::packKey(v.x(), v.y(), v.z());
-    const auto ins = slot.insert(key);
-    if (ins.second) {
-      *ins.first = static_cast<int>(merged.size());
-      merged.emplace_back();
+    // Clouds come in image order: neighbouring pixels often share a voxel, so the previous
+    // point's slot saves most hash lookups of a close-up view.
+    if (key != last_key) {
+      const auto ins = slot.insert(key);
+      if (ins.second) {
+        *ins.first = static_cast<int>(merged.size());
+        merged.emplace_back();
+      }
+      last_key = key;
+      last_slot = *ins.first;
     }
-    Merged& m = merged[*ins.first];
+    Merged& m = merged[static_cast<std::size_t>(last_slot)];
     m.sum += p;
     ++m.count;
   }
@@ -106,26 +117,90 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   const SpatialHashGrid grid(analyse ? ends : PointList(), radius);
   std::vector<double> knn(ends.size(), radius);
   std::vector<Eigen::Vector3d> normals(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
-  std::vector<double> d2;
-  for (std::size_t i = 0; analyse && i < ends.size(); ++i) {
-    d2.clear();
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-    grid.visitWithin(ends[i], radius, [&](const Point& q, int j) {
-      const Eigen::Vector3d d = q - ends[i];
-      if (static_cast<std::size_t>(j) != i) d2.push_back(d.squaredNorm());
-      sum += d;
-      outer.noalias() += d * d.transpose();
-      return true;
+  // Cell by cell: the 27 neighbour cells are looked up once per cell and copied into flat
+  // arrays, then every point of the cell tests them in one tight loop. Read-only over the grid,
+  // one output slot per point: the cells are split over `threads` threads.
+  const double r2 = radius * radius;
+  auto analyseCells = [&](std::size_t first, std::size_t last) {
+    std::vector<double> d2, cx, cy, cz, dist;
+    std::vector<int> sel;
+    grid.forEachCell(first, last, [&](const SpatialHashGrid::Cell& cell, const std::pair<int, int>* ranges, int nr) {
+      cx.clear();
+      cy.clear();
+      cz.clear();
+      for (int r = 0; r < nr; ++r)
+        for (int k = ranges[r].first; k < ranges[r].second; ++k) {
+          const Point& q = grid.storedPoint(k);
+          cx.push_back(q.x());
+          cy.push_back(q.y());
+          cz.push_back(q.z());
+        }
+      const std::size_t nc = cx.size();
+      dist.resize(nc);
+      sel.resize(nc + 1);
+      for (int k = cell.begin; k < cell.end; ++k) {
+        const Point& p = grid.storedPoint(k);
+        const std::size_t i = static_cast<std::size_t>(grid.originalIndex(k));
+        const double px = p.x(), py = p.y(), pz = p.z();
+        for (std::size_t j = 0; j < nc; ++j) {
+          const double dx = cx[j] - px, dy = cy[j] - py, dz = cz[j] - pz;
+          dist[j] = dx * dx + dy * dy + dz * dz;
+        }
+        // Branch-free compaction of the neighbours: most candidates fail the test, and a
+        // branch per candidate would mispredict often.
+        std::size_t n_sel = 0;
+        for (std::size_t j = 0; j < nc; ++j) {
+          sel[n_sel] = static_cast<int>(j);
+          n_sel += dist[j] <= r2 ? 1 : 0;
+        }
+        d2.clear();
+        double sx = 0, sy = 0, sz = 0, xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
+        bool self_seen = false;
+        for (std::size_t s = 0; s < n_sel; ++s) {
+          const std::size_t j = static_cast<std::size_t>(sel[s]);
+          if (!self_seen && dist[j] == 0.0) {
+            self_seen = true;  // the point itself (contributes nothing to the sums)
+            continue;
+          }
+          d2.push_back(dist[j]);
+          const double dx = cx[j] - px, dy = cy[j] - py, dz = cz[j] - pz;
+          sx += dx;
+          sy += dy;
+          sz += dz;
+          xx += dx * dx;
+          xy += dx * dy;
+          xz += dx * dz;
+          yy += dy * dy;
+          yz += dy * dz;
+          zz += dz * dz;
+        }
+        const double count = static_cast<double>(d2.size() + 1);
+        if (params_.incidence_limited_back_band && count >= 5) {
+          const Eigen::Vector3d mean = Eigen::Vector3d(sx, sy, sz) / count;
+          Eigen::Matrix3d cov;
+          cov << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+          es.computeDirect(cov - count * mean * mean.transpose());
+          if (es.eigenvalues()(1) > 0.05 * es.eigenvalues()(2)) normals[i] = es.eigenvectors().col(0);
+        }
+        if (params_.remove_outliers) knn[i] = meanKnnDistance(d2, params_.outliers.k, radius);
+      }
     });
-    if (params_.remove_outliers) knn[i] = meanKnnDistance(d2, params_.outliers.k, radius);
-    const double count = static_cast<double>(d2.size() + 1);
-    if (params_.incidence_limited_back_band && count >= 5) {
-      const Eigen::Vector3d mean = sum / count;
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-      es.computeDirect(outer - count * mean * mean.transpose());
-      if (es.eigenvalues()(1) > 0.05 * es.eigenvalues()(2)) normals[i] = es.eigenvectors().col(0);
+  };
+  if (analyse) {
+    const std::size_t cells = grid.cells().size();
+    const std::size_t parts = ends.size() >= 20000 ? static_cast<std::size_t>(params_.threads) : 1;
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < parts; ++t) {
+      const std::size_t b = cells * t / parts, e = cells * (t + 1) / parts;
+      try {
+        pool.emplace_back(analyseCells, b, e);
+      } catch (const std::system_error&) {  // no thread to be had: do it here
+        analyseCells(b, e);
+      }
     }
+    analyseCells(0, cells / parts);
+    for (auto& th : pool) th.join();
   }
   std::vector<char> outlier(ends.size(), 0);
   if (params_.remove_outliers && ends.size() > static_cast<std::size_t>(params_.outliers.k)) {

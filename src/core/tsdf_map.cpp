@@ -49,6 +49,7 @@ bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
 
 TsdfBlock::TsdfBlock(const VoxelIndex& o, int n)
     : origin(o),
+      voxel_count(static_cast<std::uint32_t>(n) * n * n),
       voxels(static_cast<TsdfVoxel*>(std::calloc(static_cast<std::size_t>(n) * n * n, sizeof(TsdfVoxel))),
              &std::free) {
   if (!voxels) throw std::bad_alloc();
@@ -56,9 +57,22 @@ TsdfBlock::TsdfBlock(const VoxelIndex& o, int n)
 
 void TsdfBlock::sortObserved() {
   if (sorted_count == observed.size()) return;
-  const auto mid = observed.begin() + static_cast<std::ptrdiff_t>(sorted_count);
-  std::sort(mid, observed.end());
-  std::inplace_merge(observed.begin(), mid, observed.end());
+  const std::size_t fresh = observed.size() - sorted_count;
+  const std::size_t words = (static_cast<std::size_t>(voxel_count) + 63) / 64;
+  if (fresh * 16 < words) {  // a few new voxels: sort them and merge
+    const auto mid = observed.begin() + static_cast<std::ptrdiff_t>(sorted_count);
+    std::sort(mid, observed.end());
+    std::inplace_merge(observed.begin(), mid, observed.end());
+  } else {  // many (a view into a new area): a bitmask sorts them in linear time
+    thread_local std::vector<std::uint64_t> bits;
+    bits.assign(words, 0);
+    for (std::uint32_t idx : observed) bits[idx >> 6] |= std::uint64_t(1) << (idx & 63);
+    std::size_t n = 0;
+    for (std::size_t w = 0; w < words; ++w)
+      for (std::uint64_t b = bits[w]; b != 0; b &= b - 1)
+        observed[n++] = static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(__builtin_ctzll(b)));
+    observed.resize(n);  // n == size: every index is listed once
+  }
   sorted_count = observed.size();
 }
 

@@ -34,6 +34,7 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   read(nh, "remove_outliers", p.integrator.remove_outliers);
   read(nh, "outlier_k", p.integrator.outliers.k);
   read(nh, "outlier_std_mul", p.integrator.outliers.std_mul);
+  read(nh, "integration_threads", p.integrator.threads);
   read(nh, "cluster_tolerance", p.pipeline.clustering.tolerance);
   read(nh, "cluster_min_size", p.pipeline.clustering.min_size);
   read(nh, "cluster_max_size", p.pipeline.clustering.max_size);

@@ -4,6 +4,7 @@
 #include <fruit_shape_completion/tsdf_integrator.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 
+#include <memory>
 #include <random>
 
 using namespace fruit_shape_completion;
@@ -55,7 +56,9 @@ BENCHMARK(BM_TsdfIntegrateFruitFrame)->Unit(benchmark::kMillisecond);
 
 // A full 640 x 480 frame (two fruit clusters and a back wall; 0.3-1.5 m) at 4 mm.
 // Arg 1: default integrator (outlier removal and incidence-limited band, which need a
-// neighbourhood pass over all merged points); Arg 0: both off.
+// neighbourhood pass over all merged points); Arg 0: both off. Second arg: threads. Third
+// arg: 0 into a fresh map (first touch of every block page is included), 1 into a map that
+// already holds this area (as every later frame of a run).
 static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
   AnalyticScene scene = fruitCluster(Eigen::Vector3d(0.0, 0.5, 0.5), 6, 3);
   const AnalyticScene far = fruitCluster(Eigen::Vector3d(0.1, 1.0, 0.5), 6, 4);
@@ -65,18 +68,31 @@ static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
   const PointList frame = renderDepth(scene, cam, 0.0015).points;
   TsdfIntegratorParams params;
   params.remove_outliers = params.incidence_limited_back_band = state.range(0) != 0;
+  params.threads = static_cast<int>(state.range(1));
   const TsdfIntegrator integ(params);
   std::size_t rays = 0;
+  const bool warm = state.range(2) != 0;
+  TsdfMap warm_map;
+  if (warm) integ.integrate(warm_map, frame, cam.position);
   for (auto _ : state) {
-    state.PauseTiming();
-    TsdfMap map;
-    state.ResumeTiming();
-    rays = integ.integrate(map, frame, cam.position).rays;
+    if (warm) {
+      rays = integ.integrate(warm_map, frame, cam.position).rays;
+    } else {
+      state.PauseTiming();
+      auto map = std::make_unique<TsdfMap>();
+      state.ResumeTiming();
+      rays = integ.integrate(*map, frame, cam.position).rays;
+      state.PauseTiming();
+      map.reset();  // freeing the blocks is not part of the integration
+      state.ResumeTiming();
+    }
   }
   state.counters["points"] = static_cast<double>(frame.size());
   state.counters["rays"] = static_cast<double>(rays);
 }
-BENCHMARK(BM_TsdfIntegrateFullFrame)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TsdfIntegrateFullFrame)
+    ->Args({1, 1, 0})->Args({1, 1, 1})->Args({1, 2, 1})->Args({0, 1, 0})->Args({0, 1, 1})
+    ->Unit(benchmark::kMillisecond);
 
 // Surface extraction from a map holding 50 fruits, each cluster of 5 seen from 6 directions.
 static void BM_TsdfExtractSurface(benchmark::State& state) {

@@ -326,3 +326,50 @@ TEST(TsdfMap, BadInputIsRefusedWithAMessageAndTheMapKept) {
   EXPECT_EQ(r.out_of_range, 2u);
   EXPECT_EQ(map.observedVoxelCount(), observed);
 }
+
+// A full VGA frame (a wall behind two fruits, with depth noise and a few stray points): the
+// neighbourhood pass on two threads gives exactly the map of one thread, and every block's
+// list of observed voxels is strictly ascending (the bitmask sort of large batches).
+TEST(TsdfMap, FullFrameOnTwoThreadsEqualsOneThread) {
+  AnalyticScene scene;
+  scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0.0, 0.5, 0.5)));
+  scene.shapes.push_back(sphere(0.035, Eigen::Vector3d(0.1, 0.6, 0.45)));
+  scene.planes.push_back({Eigen::Vector3d(0, 1.2, 0), Eigen::Vector3d(0, -1, 0)});
+  const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(0, 0, 0.5), Eigen::Vector3d(0, 1, 0.5));
+  PointList frame = renderDepth(scene, cam, 0.0015, 3).points;
+  for (int i = 0; i < 200; ++i) frame.push_back(Eigen::Vector3d(0.3 + 0.001 * i, 0.4, 0.3 - 0.0007 * i));  // strays
+  ASSERT_GT(frame.size(), 200000u);
+  TsdfIntegratorParams one, two;
+  two.threads = 2;
+  TsdfMap a, b;
+  const IntegrationReport ra = TsdfIntegrator(one).integrate(a, frame, cam.position);
+  const IntegrationReport rb = TsdfIntegrator(two).integrate(b, frame, cam.position);
+  ASSERT_TRUE(ra.ok() && rb.ok()) << ra.error << rb.error;
+  EXPECT_GT(ra.rays, 20000u);  // enough merged points for the threaded path
+  EXPECT_GT(ra.outliers, 0u);
+  EXPECT_EQ(ra.outliers, rb.outliers);
+  EXPECT_EQ(ra.voxel_updates, rb.voxel_updates);
+  const PointList sa = extractSurfacePoints(a), sb = extractSurfacePoints(b);
+  ASSERT_EQ(sa.size(), sb.size());
+  for (std::size_t i = 0; i < sa.size(); ++i) ASSERT_EQ(sa[i], sb[i]) << i;
+  std::size_t blocks = 0;
+  a.forEachBlock([&](const TsdfBlock& block) {
+    ++blocks;
+    for (std::size_t k = 1; k < block.observed.size(); ++k) ASSERT_LT(block.observed[k - 1], block.observed[k]);
+    EXPECT_EQ(block.sorted_count, block.observed.size());
+  });
+  EXPECT_GT(blocks, 4u);
+  // The wall stays where it is: one view with 2 mm depth noise at 1.2 m puts its surface
+  // points within 3 voxels of y = 1.2, unbiased.
+  std::size_t wall = 0;
+  double sum = 0, worst = 0;
+  for (const auto& p : sa)
+    if (p.y() > 1.1) {
+      ++wall;
+      sum += p.y() - 1.2;
+      worst = std::max(worst, std::abs(p.y() - 1.2));
+    }
+  EXPECT_GT(wall, 10000u);
+  EXPECT_LT(std::abs(sum / wall), 0.25 * a.voxelSize());
+  EXPECT_LT(worst, 3 * a.voxelSize());
+}
