@@ -58,6 +58,20 @@ double viewGain(const RoiOcTree& tree, const PinholeCamera& cam, const PlannerPa
 
 }  // namespace
 
+SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution) {
+  SceneTruth truth;
+  for (const auto& f : fruits) {
+    truth.enclosed.push_back({f.center, f.volume});
+    truth.se.push_back({f.se.t, f.se_volume});
+    // Centres of the voxels holding the extreme vertices: floor(x / res) + 0.5, per axis.
+    const Eigen::Vector3d lo = ((f.box_min / resolution).array().floor() + 0.5) * resolution;
+    const Eigen::Vector3d hi = ((f.box_max / resolution).array().floor() + 0.5) * resolution;
+    const double volume = std::max((hi - lo).prod(), std::pow(resolution, 3));  // never 0: accuracy divides by it
+    truth.box.push_back({0.5 * (lo + hi), volume});
+  }
+  return truth;
+}
+
 std::string PlannerParams::problem() const {
   auto finite_pos = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!(std::isfinite(duration) && duration >= 0.0)) return "duration must be >= 0";
@@ -69,6 +83,7 @@ std::string PlannerParams::problem() const {
   if (utility_rays_x < 1 || utility_rays_y < 1) return "utility_rays_x/y must be >= 1";
   if (!finite_pos(utility_range)) return "utility_range must be > 0";
   if (!(std::isfinite(travel_weight) && travel_weight >= 0.0)) return "travel_weight must be >= 0";
+  if (!(octree_resolution >= 0.001 && octree_resolution <= 0.5)) return "octree_resolution must be in [0.001, 0.5] m";
   if (octree_pixel_step < 1) return "octree_pixel_step must be >= 1";
   if (!finite_pos(octree_max_range)) return "octree_max_range must be > 0";
   if (!(std::isfinite(clearance) && clearance >= 0.0)) return "clearance must be >= 0";
@@ -97,7 +112,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
 
   std::mt19937 rng(p.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  RoiOcTree tree(0.01);
+  RoiOcTree tree(p.octree_resolution);
   Eigen::Vector3d pos = scene.camera_start_position, look = scene.camera_start_look_at;
   double t = 0.0;
   int views_without_gain = 0;
@@ -150,6 +165,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     rec.se_true = evaluate(se_fruits, truth.enclosed);
     rec.old_se = evaluate(old_fruits, truth.se);
     rec.se_se = evaluate(se_fruits, truth.se);
+    rec.old_box = evaluate(old_fruits, truth.box);
 
     // Targets and the next view.
     PointList targets = tree.roiContourTargets();

@@ -146,11 +146,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::vector<int> triangle_fruit;
-  planner::SceneTruth truth;
-  for (const auto& f : sim::computeFruitTruth(scene, &triangle_fruit)) {
-    truth.enclosed.push_back({f.center, f.volume});
-    truth.se.push_back({f.se.t, f.se_volume});
-  }
+  const planner::SceneTruth truth = planner::makeSceneTruth(sim::computeFruitTruth(scene, &triangle_fruit), planner::PlannerParams().octree_resolution);
   const sim::RgbdRenderer renderer(scene, triangle_fruit);
   tf2_ros::TransformBroadcaster tf;
   ros::Publisher octree_pub = pnh.advertise<visualization_msgs::MarkerArray>("roi_octree", 1, true);

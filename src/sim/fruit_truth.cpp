@@ -183,6 +183,12 @@ std::vector<FruitTruth> computeFruitTruth(const Scene& materials_from,
     f.plant = triangle_plant.empty() ? -1 : triangle_plant[comp.front()];
     f.center = solid.centroid;
     f.volume = solid.volume;
+    f.box_min = f.box_max = welded[tris.front()[0]];
+    for (const auto& t : tris)
+      for (int k = 0; k < 3; ++k) {
+        f.box_min = f.box_min.cwiseMin(welded[t[k]]);
+        f.box_max = f.box_max.cwiseMax(welded[t[k]]);
+      }
     f.triangles = static_cast<int>(comp.size());
     f.boundary_edges = solid.boundary_edges;
     std::map<int, int> votes;

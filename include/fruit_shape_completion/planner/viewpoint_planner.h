@@ -8,6 +8,7 @@
 #include <fruit_shape_completion/planner/evaluation.h>
 #include <fruit_shape_completion/planner/roi_octree.h>
 #include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 
 #include <functional>
@@ -27,6 +28,7 @@ struct PlannerParams {
   double utility_range = 1.0;  // [m]
   double travel_weight = 0.2;  // utility = gain / best gain - travel_weight * distance [m]
   bool shape_targets = true;   // use the estimators' extra targets
+  double octree_resolution = 0.01;  // [m] the ROI octree's cells
   int octree_pixel_step = 3;   // every n-th pixel (both ways) goes into the 1 cm octree
   double octree_max_range = 1.5;
   double clearance = 0.05;     // [m] free space around the camera
@@ -43,6 +45,7 @@ struct ViewRecord {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Evaluation old_true, se_true;  // against the enclosed volume
   Evaluation old_se, se_se;      // against the ground-truth superellipsoid volume
+  Evaluation old_box;            // Old against the voxel-centre box (SceneTruth::box)
   int contour_targets = 0, shape_targets = 0;
   bool exploration = false;
   double wall_ms = 0.0;
@@ -57,7 +60,13 @@ struct EpisodeResult {
 struct SceneTruth {
   std::vector<TruthFruit> enclosed;  // volume = enclosed volume
   std::vector<TruthFruit> se;        // volume = superellipsoid volume
+  // The upstream planner evaluator's ground truth for the Old boxes: the box of the centres of
+  // the fruit's voxels at the octree resolution (its midpoint as the centre). Box against box:
+  // a fully seen fruit's Old box scores ~1 here, ~0.1 against the enclosed volume.
+  std::vector<TruthFruit> box;
 };
+// All three from the scene's ground-truth fruits; `resolution` is the ROI octree's.
+SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution);
 
 // Called after every view (e.g. to publish it); return false to stop the episode.
 using ViewCallback = std::function<bool(const ViewRecord&, const RoiOcTree&, const PinholeCamera&,

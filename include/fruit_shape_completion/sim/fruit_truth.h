@@ -17,6 +17,7 @@ struct FruitTruth {
   int plant = -1;
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  // centroid of the enclosed solid
   double volume = 0.0;                               // enclosed volume [m^3]
+  Eigen::Vector3d box_min = Eigen::Vector3d::Zero(), box_max = Eigen::Vector3d::Zero();  // mesh AABB
   Superellipsoid se;                                 // fitted to the mesh surface
   double se_volume = 0.0;
   std::string color;         // "red", "yellow", "other"
