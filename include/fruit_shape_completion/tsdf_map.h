@@ -103,6 +103,7 @@ class TsdfMap {
 
  private:
   std::uint64_t blockKeyOf(const VoxelIndex& block_origin) const;
+  bool blockInRange(const VoxelIndex& block_origin) const;
 
   TsdfMapParams params_;
   std::unordered_map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;

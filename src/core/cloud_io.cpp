@@ -133,7 +133,11 @@ CloudFile readPcd(const std::string& path) {
   constexpr long long kMaxPoints = 1LL << 32;
   if (width < -1 || height < 0 || width > kMaxPoints || height > kMaxPoints)
     return fail(path, "malformed PCD header: bad WIDTH or HEIGHT");
-  if (points < 0) points = width >= 0 ? width * height : -1;
+  if (points < 0 && width >= 0) {
+    if (height != 0 && width > kMaxPoints / height)
+      return fail(path, "malformed PCD header: implausible WIDTH x HEIGHT");
+    points = width * height;
+  }
   if (points < 0) return fail(path, "malformed PCD header: no POINTS or WIDTH");
   if (points > kMaxPoints) return fail(path, "malformed PCD header: implausible POINTS " + std::to_string(points));
   for (int c : counts)
@@ -155,6 +159,7 @@ CloudFile readPcd(const std::string& path) {
     token[i] = tokens;
     record += static_cast<size_t>(f.size) * counts[i];
     tokens += counts[i];
+    if (record > (1u << 20)) return fail(path, "malformed PCD header: a point of more than 1 MiB");
     if (f.name == "x") ix = static_cast<int>(i);
     if (f.name == "y") iy = static_cast<int>(i);
     if (f.name == "z") iz = static_cast<int>(i);
@@ -210,6 +215,9 @@ CloudFile readPcd(const std::string& path) {
       return fail(path, "malformed PCD: compressed payload size does not match the header");
     if (sizes_hdr[0] > remaining - std::min<std::uint64_t>(remaining, sizeof(sizes_hdr)))
       return fail(path, "truncated PCD compressed data: the file is shorter than its compressed size");
+    // LZF expands at most ~90x (a 3-byte back reference copies up to 264 bytes).
+    if (sizes_hdr[1] > 100ull * sizes_hdr[0] + 64)
+      return fail(path, "malformed PCD: uncompressed size impossible for its compressed size");
     std::vector<unsigned char> packed(sizes_hdr[0]), raw(sizes_hdr[1]);
     if (!in.read(reinterpret_cast<char*>(packed.data()), packed.size()))
       return fail(path, "truncated PCD compressed data");

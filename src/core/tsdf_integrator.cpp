@@ -8,7 +8,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
-#include <system_error>
+#include <exception>
 #include <thread>
 
 namespace fruit_shape_completion {
@@ -16,8 +16,8 @@ namespace fruit_shape_completion {
 void TsdfIntegratorParams::validate() const {
   if (!(truncation_voxels >= 1.0) || !std::isfinite(truncation_voxels))
     throw std::invalid_argument("tsdf truncation must be at least 1 voxel");
-  if (!(max_weight > 0.0) || !std::isfinite(max_weight))
-    throw std::invalid_argument("tsdf max_weight must be a finite value > 0");
+  if (!(max_weight >= 1e-6) || !std::isfinite(max_weight))
+    throw std::invalid_argument("tsdf max_weight must be a finite value >= 1e-6");
   if (!(min_range >= 0.0) || !(max_range > min_range) || !std::isfinite(max_range))
     throw std::invalid_argument("tsdf ranges must satisfy 0 <= min_range < max_range");
   if (max_points < 1) throw std::invalid_argument("tsdf max_points must be >= 1");
@@ -190,17 +190,28 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   if (analyse) {
     const std::size_t cells = grid.cells().size();
     const std::size_t parts = ends.size() >= 20000 ? static_cast<std::size_t>(params_.threads) : 1;
+    // Nothing may escape a part before every thread is joined: each part keeps its exception,
+    // the first one is rethrown afterwards (as the single-threaded pass would throw it).
+    std::vector<std::exception_ptr> errors(parts);
+    auto part = [&](std::size_t t) {
+      try {
+        analyseCells(cells * t / parts, cells * (t + 1) / parts);
+      } catch (...) {
+        errors[t] = std::current_exception();
+      }
+    };
     std::vector<std::thread> pool;
     for (std::size_t t = 1; t < parts; ++t) {
-      const std::size_t b = cells * t / parts, e = cells * (t + 1) / parts;
       try {
-        pool.emplace_back(analyseCells, b, e);
-      } catch (const std::system_error&) {  // no thread to be had: do it here
-        analyseCells(b, e);
+        pool.emplace_back(part, t);
+      } catch (...) {  // no thread to be had: do it here
+        part(t);
       }
     }
-    analyseCells(0, cells / parts);
+    part(0);
     for (auto& th : pool) th.join();
+    for (const auto& e : errors)
+      if (e) std::rethrow_exception(e);
   }
   std::vector<char> outlier(ends.size(), 0);
   if (params_.remove_outliers && ends.size() > static_cast<std::size_t>(params_.outliers.k)) {

@@ -22,7 +22,8 @@ constexpr char kMagic[8] = {'F', 'S', 'C', 'T', 'S', 'D', 'F', '1'};
 }  // namespace
 
 void TsdfMapParams::validate() const {
-  // Bounded so voxel indices of any point within +-1000 km stay far from int64 overflow.
+  // Bounded so voxel indices stay far from int64 overflow (the map itself ends at +-2^20 blocks,
+  // 268 km at 4 mm voxels and 64 per block: blockInRange).
   if (!(voxel_size >= 1e-4 && voxel_size <= 10.0))
     throw std::invalid_argument("tsdf voxel_size must be in [0.0001, 10] m");
   if (voxels_per_side < 1 || voxels_per_side > 512)
@@ -89,6 +90,7 @@ std::uint64_t TsdfMap::blockKeyOf(const VoxelIndex& o) const {
 const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
   // No use of the update cache here: const lookups stay safe from concurrent readers.
   const VoxelIndex origin = blockOriginOf(v);
+  if (!blockInRange(origin)) return nullptr;
   const auto it = blocks_.find(blockKeyOf(origin));
   if (it == blocks_.end()) return nullptr;
   const VoxelIndex l = v - origin;
@@ -96,7 +98,14 @@ const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
   return &it->second->voxels[static_cast<std::size_t>(l.x() + n * (l.y() + n * l.z()))];
 }
 
+bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
+  // Block keys hold 21 bits per axis: beyond +-2^20 blocks two places would share a block.
+  const std::int64_t limit = static_cast<std::int64_t>(params_.voxels_per_side) * ((std::int64_t(1) << 20) - 1);
+  return (origin.array().abs() <= limit).all();
+}
+
 TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
+  if (!blockInRange(origin)) return nullptr;
   const std::uint64_t key = blockKeyOf(origin);
   if (key == cached_key_) return cached_block_;
   auto it = blocks_.find(key);
@@ -211,16 +220,15 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
   try {
     TsdfMap loaded(p);
     const std::uint64_t voxels = static_cast<std::uint64_t>(vps) * vps * vps;
-    constexpr std::int64_t kMaxOrigin = std::int64_t(1) << 40;  // in voxels; real maps are far smaller
     for (std::uint64_t b = 0; b < count; ++b) {
       std::int64_t origin[3];
       std::uint32_t n = 0;
       if (!get(origin, sizeof(origin)) || !get(&n, 4)) return fail("truncated block header");
       if (n > voxels) return fail("block lists more voxels than it has");
       for (int k = 0; k < 3; ++k) {
-        if (origin[k] > kMaxOrigin || origin[k] < -kMaxOrigin) return fail("block origin out of range");
         if (origin[k] % static_cast<std::int64_t>(vps) != 0) return fail("misaligned block origin");
       }
+      if (!loaded.blockInRange(VoxelIndex(origin[0], origin[1], origin[2]))) return fail("block origin out of range");
       for (std::uint32_t i = 0; i < n; ++i) {
         std::uint32_t idx;
         TsdfVoxel v;

@@ -60,6 +60,7 @@ double viewGain(const RoiOcTree& tree, const PinholeCamera& cam, const PlannerPa
 
 SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution) {
   SceneTruth truth;
+  truth.box_resolution = resolution;
   for (const auto& f : fruits) {
     truth.enclosed.push_back({f.center, f.volume});
     truth.se.push_back({f.se.t, f.se_volume});
@@ -96,7 +97,10 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
                          const ViewCallback& on_view) {
   EpisodeResult result;
   result.truth_fruits = static_cast<int>(truth.enclosed.size());
-  const std::string bad = p.problem();
+  std::string bad = p.problem();
+  if (bad.empty() && !truth.box.empty() && std::abs(truth.box_resolution - p.octree_resolution) > 1e-9)
+    bad = "the ground-truth boxes were made for " + std::to_string(truth.box_resolution) + " m cells, the octree has " +
+          std::to_string(p.octree_resolution) + " m (makeSceneTruth with params.octree_resolution)";
   if (!bad.empty()) {
     result.message = "bad planner parameters: " + bad + "; no views taken";
     return result;

@@ -174,12 +174,24 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 2000000000\nPOINTS 1\nDATA binary\n",
       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT -2\nDATA binary\n",
       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 99999999999999\nDATA ascii\n1 2 3\n",
+      "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4294967296\nHEIGHT 4294967296\nDATA binary\n",
+      "FIELDS x y z a b c\nSIZE 4 4 4 8 8 8\nTYPE F F F F F F\nCOUNT 1 1 1 65536 65536 65536\nPOINTS 1\nDATA binary\n",
   };
   for (const auto& text : lying) {
     writeFile(path, text + std::string(64, '\0'));
     f = readPointCloud(path);
     EXPECT_FALSE(f.ok()) << text;
     EXPECT_FALSE(f.error.empty());
+  }
+  // An uncompressed size LZF cannot reach from its compressed size (12 MB from 20 bytes).
+  {
+    const std::string h3 = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1000000\n";
+    const std::uint32_t ratio[2] = {20u, 12000000u};
+    writeFile(path, h3 + "DATA binary_compressed\n" + std::string(reinterpret_cast<const char*>(ratio), 8) +
+                        std::string(20, '\0'));
+    f = readPointCloud(path);
+    EXPECT_FALSE(f.ok());
+    EXPECT_NE(f.error.find("impossible"), std::string::npos) << f.error;
   }
   // A compressed size larger than the file.
   const std::uint32_t big[2] = {0xfffffff0u, static_cast<std::uint32_t>(raw.size())};

@@ -325,6 +325,15 @@ TEST(TsdfMap, BadInputIsRefusedWithAMessageAndTheMapKept) {
   r = integ.integrate(map, {Eigen::Vector3d(0.1, 0, 0.5), Eigen::Vector3d(0.2, 0.01, 0.5)}, pose);
   EXPECT_EQ(r.out_of_range, 2u);
   EXPECT_EQ(map.observedVoxelCount(), observed);
+  // Beyond the map's extent (+-2^20 blocks, 268 km at 4 mm): refused, not folded onto the blocks
+  // near the origin that share its hash key.
+  const Eigen::Vector3d far(64.0 * 0.004 * (1 << 21), 0, 0);  // exactly one key period away
+  r = integ.integrate(map, {far + Eigen::Vector3d(0.1, 0.6, 0.5)}, far + Eigen::Vector3d(0.1, 0.2, 0.5));
+  EXPECT_EQ(r.outside_map, 1u);
+  EXPECT_EQ(map.observedVoxelCount(), observed);
+  TsdfIntegratorParams tiny;
+  tiny.max_weight = 1e-30;
+  EXPECT_THROW(TsdfIntegrator{tiny}, std::invalid_argument);
 }
 
 // A full VGA frame (a wall behind two fruits, with depth noise and a few stray points): the

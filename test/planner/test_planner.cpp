@@ -240,6 +240,11 @@ TEST(ViewpointPlanner, BadScenesGiveAMessageAndAValidResult) {
     const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, bad);
     EXPECT_TRUE(r.views.empty());
     EXPECT_NE(r.message.find("octree_pixel_step"), std::string::npos) << r.message;
+    PlannerParams other = p;
+    other.octree_resolution = 0.02;  // the truth's boxes were made for 1 cm cells
+    const EpisodeResult r2 = runEpisode(s.scene, *s.renderer, s.truth, host, other);
+    EXPECT_TRUE(r2.views.empty());
+    EXPECT_NE(r2.message.find("ground-truth boxes"), std::string::npos) << r2.message;
   }
   {  // camera start outside the workspace
     sim::Scene outside = s.scene;

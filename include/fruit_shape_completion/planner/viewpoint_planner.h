@@ -64,6 +64,7 @@ struct SceneTruth {
   // the fruit's voxels at the octree resolution (its midpoint as the centre). Box against box:
   // a fully seen fruit's Old box scores ~1 here, ~0.1 against the enclosed volume.
   std::vector<TruthFruit> box;
+  double box_resolution = 0.0;  // [m] the cells `box` was made for (runEpisode checks it)
 };
 // All three from the scene's ground-truth fruits; `resolution` is the ROI octree's.
 SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution);
