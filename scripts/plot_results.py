@@ -5,7 +5,8 @@ usage: scripts/plot_results.py DIR [--out FILE.png]
 
 Reads DIR/trial_*.csv (one row per view) and draws, for Old and SE and the subsets all, MA0
 and MA50, the number of detected fruits over simulated time: the mean over trials as a line and
-the spread (min to max) as a band. Writes DIR/fruits_over_time.png unless --out says otherwise.
+the spread (min to max) as a band. A dashed line adds Old scored box against the fruit's voxel
+box, as the upstream evaluator does. Writes DIR/fruits_over_time.png unless --out says otherwise.
 Needs numpy and matplotlib (Debian: python3-numpy python3-matplotlib).
 """
 import csv
@@ -56,9 +57,14 @@ def main(argv):
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), sharey=True)
     for ax, subset in zip(axes, ("all", "ma0", "ma50")):
-        for est, color in (("old", "tab:blue"), ("se", "tab:red")):
-            data = np.array([series(rows, f"{est}_{subset}_fruits") for rows in trials])
-            ax.plot(grid, data.mean(axis=0), color=color, label=f"{est.upper()} (mean of {len(trials)})")
+        for est, color, label in (("old", "tab:blue", "OLD"), ("se", "tab:red", "SE"),
+                                  ("old_box", "tab:cyan", "OLD vs voxel box")):
+            column = f"{est}_{subset}_fruits"
+            if column not in trials[0][0]:
+                continue  # folders written before the box ground truth existed
+            data = np.array([series(rows, column) for rows in trials])
+            ax.plot(grid, data.mean(axis=0), color=color, label=f"{label} (mean of {len(trials)})",
+                    linestyle="--" if est == "old_box" else "-")
             ax.fill_between(grid, data.min(axis=0), data.max(axis=0), color=color, alpha=0.2)
         ax.set_title({"all": "all matched", "ma0": "MA0 (accuracy > 0)", "ma50": "MA50 (accuracy > 0.5)"}[subset])
         ax.set_xlabel("time [s]")
