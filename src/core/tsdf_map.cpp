@@ -51,7 +51,7 @@ bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
 TsdfBlock::TsdfBlock(const VoxelIndex& o, int n)
     : origin(o),
       voxel_count(static_cast<std::uint32_t>(n) * n * n),
-      voxels(static_cast<TsdfVoxel*>(std::calloc(static_cast<std::size_t>(n) * n * n, sizeof(TsdfVoxel))),
+      voxels(static_cast<TsdfVoxel*>(std::calloc(voxel_count, sizeof(TsdfVoxel))),
              &std::free) {
   if (!voxels) throw std::bad_alloc();
 }
@@ -225,9 +225,8 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
       std::uint32_t n = 0;
       if (!get(origin, sizeof(origin)) || !get(&n, 4)) return fail("truncated block header");
       if (n > voxels) return fail("block lists more voxels than it has");
-      for (int k = 0; k < 3; ++k) {
+      for (int k = 0; k < 3; ++k)
         if (origin[k] % static_cast<std::int64_t>(vps) != 0) return fail("misaligned block origin");
-      }
       if (!loaded.blockInRange(VoxelIndex(origin[0], origin[1], origin[2]))) return fail("block origin out of range");
       for (std::uint32_t i = 0; i < n; ++i) {
         std::uint32_t idx;

@@ -19,60 +19,48 @@ void ShapeEstimatorHost::fail(std::size_t i, const std::string& what) const {
   std::cerr << msg << "\n";
 }
 
-void ShapeEstimatorHost::onView(const ViewData& view) {
-  for (std::size_t i = 0; i < estimators_.size(); ++i) {
-    if (!enabled_[i]) continue;
-    try {
-      estimators_[i]->insertView(view);
-      estimators_[i]->update();
-    } catch (const std::exception& e) {
-      fail(i, e.what());
-    } catch (...) {
-      fail(i, "unknown exception");
-    }
-  }
-}
-
-PointList ShapeEstimatorHost::extraTargets() const {
-  PointList all;
-  for (std::size_t i = 0; i < estimators_.size(); ++i) {
-    if (!enabled_[i]) continue;
-    try {
-      const PointList t = estimators_[i]->extraTargets();
-      for (const auto& p : t)
-        if (p.allFinite()) all.push_back(p);
-    } catch (const std::exception& e) {
-      fail(i, e.what());
-    } catch (...) {
-      fail(i, "unknown exception");
-    }
-  }
-  return all;
-}
-
-std::vector<EstimatedFruit> ShapeEstimatorHost::fruits(std::size_t i) const {
-  if (!enabled(i)) return {};
+template <typename Call>
+bool ShapeEstimatorHost::guarded(std::size_t i, Call&& call) const {
   try {
-    return estimators_[i]->fruits();
+    call(*estimators_[i]);
+    return true;
   } catch (const std::exception& e) {
     fail(i, e.what());
   } catch (...) {
     fail(i, "unknown exception");
   }
-  return {};
+  return false;
+}
+
+void ShapeEstimatorHost::onView(const ViewData& view) {
+  for (std::size_t i = 0; i < estimators_.size(); ++i)
+    if (enabled_[i])
+      guarded(i, [&](ShapeEstimator& e) {
+        e.insertView(view);
+        e.update();
+      });
+}
+
+PointList ShapeEstimatorHost::extraTargets() const {
+  PointList all;
+  for (std::size_t i = 0; i < estimators_.size(); ++i) {
+    PointList t;
+    if (enabled_[i] && guarded(i, [&](ShapeEstimator& e) { t = e.extraTargets(); }))
+      for (const auto& p : t)
+        if (p.allFinite()) all.push_back(p);
+  }
+  return all;
+}
+
+std::vector<EstimatedFruit> ShapeEstimatorHost::fruits(std::size_t i) const {
+  std::vector<EstimatedFruit> f;
+  if (enabled(i)) guarded(i, [&](ShapeEstimator& e) { f = e.fruits(); });  // f stays empty if it throws
+  return f;
 }
 
 void ShapeEstimatorHost::reset() {
-  for (std::size_t i = 0; i < estimators_.size(); ++i) {
-    try {
-      estimators_[i]->reset();
-      enabled_[i] = 1;
-    } catch (const std::exception& e) {
-      fail(i, e.what());
-    } catch (...) {
-      fail(i, "unknown exception");
-    }
-  }
+  for (std::size_t i = 0; i < estimators_.size(); ++i)
+    if (guarded(i, [](ShapeEstimator& e) { e.reset(); })) enabled_[i] = 1;
 }
 
 SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)

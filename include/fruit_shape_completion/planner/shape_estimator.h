@@ -54,6 +54,9 @@ class ShapeEstimatorHost {
 
  private:
   void fail(std::size_t i, const std::string& what) const;
+  // Runs call(estimator i); if it throws, disables the estimator with the message and returns false.
+  template <typename Call>
+  bool guarded(std::size_t i, Call&& call) const;
   std::vector<std::unique_ptr<ShapeEstimator>> estimators_;
   mutable std::vector<char> enabled_;
   mutable std::vector<std::string> errors_;
