@@ -47,7 +47,10 @@ struct IntegrationReport {
   std::size_t outliers = 0;      // merged points removed by the outlier filter
   std::size_t rays = 0;
   std::size_t voxel_updates = 0;
-  double seconds = 0.0;
+  double seconds = 0.0;  // all of it; the phases:
+  double merge_seconds = 0.0;          // checks and merging the points per voxel
+  double neighbourhood_seconds = 0.0;  // outlier statistics and normals (0 when both are off)
+  double ray_seconds = 0.0;            // ray casting and the update of the map
   bool ok() const { return error.empty(); }
 };
 

@@ -13,6 +13,179 @@
 
 namespace fruit_shape_completion {
 
+namespace {
+
+// Casts the rays of one view into the map: each ray updates the voxels it crosses within its
+// band (from `tau` before the end point, or from the sensor with carve_free_space, to
+// `back_len` behind it).
+//
+// The band voxels of a full frame (tens of MB) mostly miss the caches, and a ray that applied
+// its updates as it went would wait on each miss in turn. So the traversal only queues the
+// updates and prefetches their voxels; every kQueueFlush updates the queue is applied in
+// order. The misses overlap, and the map ends as with one update after another.
+class BandCaster {
+ public:
+  BandCaster(TsdfMap& map, const TsdfIntegratorParams& params, double tau)
+      : map_(map),
+        params_(params),
+        tau_(tau),
+        vs_(map.voxelSize()),
+        inv_vs_(1.0 / map.voxelSize()),
+        nps_(map.voxelsPerSide()),
+        layout_x_(map.layout().xTable()),
+        layout_y_(map.layout().yTable()),
+        layout_z_(map.layout().zTable()),
+        crop_(map.params().use_crop_box),
+        queue_(kQueueFlush + 1024) {}
+
+  std::size_t rays = 0, voxel_updates = 0, partly_dropped_rays = 0;
+
+  void cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+            double range, double w_ray, double back_len);
+  // Applies what is queued and merges each touched block's new voxels into its sorted list.
+  void finish() {
+    flush();
+    std::sort(touched_.begin(), touched_.end());
+    touched_.erase(std::unique(touched_.begin(), touched_.end()), touched_.end());
+    for (TsdfBlock* b : touched_) b->sortObserved();
+  }
+
+ private:
+  struct QueuedUpdate {
+    TsdfBlock* block;
+    std::uint32_t idx;
+    float sdf;
+    double weight;
+  };
+  static constexpr std::size_t kQueueFlush = 1024;
+
+  void flush() {
+    const double max_weight = params_.max_weight;
+    for (std::size_t k = 0; k < queued_; ++k) {
+      const QueuedUpdate& u = queue_[k];
+      u.block->update(u.idx, u.sdf, u.weight, max_weight);
+    }
+    queued_ = 0;
+  }
+  TsdfBlock* enterBlock(const VoxelIndex& voxel, VoxelIndex* block_origin) {
+    *block_origin = map_.blockOriginOf(voxel);
+    TsdfBlock* block = map_.blockForUpdate(*block_origin);
+    if (block != nullptr && (touched_.empty() || touched_.back() != block)) touched_.push_back(block);
+    return block;
+  }
+
+  TsdfMap& map_;
+  const TsdfIntegratorParams& params_;
+  const double tau_, vs_, inv_vs_;
+  const int nps_;
+  const std::uint32_t *layout_x_, *layout_y_, *layout_z_;
+  const bool crop_;
+  std::vector<QueuedUpdate> queue_;
+  std::size_t queued_ = 0;
+  std::vector<TsdfBlock*> touched_;
+};
+
+void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                      double range, double w_ray, double back_len) {
+  const Eigen::Vector3d s = params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau_, range));
+  const Eigen::Vector3d e = p + dir * back_len;
+  ++rays;
+
+  // Amanatides-Woo traversal of the voxels from s to e, in voxel units. Everything the loop
+  // carries is a scalar (per-axis arrays indexed by the step axis would live on the stack);
+  // the block is looked up only when the ray crosses into the next one.
+  const Eigen::Vector3d a = s * inv_vs_, b = e * inv_vs_, d = b - a;
+  const VoxelIndex first = a.array().floor().cast<std::int64_t>();
+  const VoxelIndex last = b.array().floor().cast<std::int64_t>();
+  const double inf = std::numeric_limits<double>::infinity();
+  auto setup = [&](int k, int& step, double& t_max, double& t_delta) {
+    step = d[k] > 0 ? 1 : (d[k] < 0 ? -1 : 0);
+    if (step == 0) {
+      t_max = t_delta = inf;
+    } else {
+      const double boundary = static_cast<double>(first[k] + (step > 0 ? 1 : 0));
+      t_max = (boundary - a[k]) / d[k];
+      t_delta = std::abs(1.0 / d[k]);
+    }
+  };
+  int sx, sy, sz;
+  double tx, ty, tz, dtx, dty, dtz;
+  setup(0, sx, tx, dtx);
+  setup(1, sy, ty, dty);
+  setup(2, sz, tz, dtz);
+  VoxelIndex block_origin;
+  TsdfBlock* block = enterBlock(first, &block_origin);
+  int lx = static_cast<int>(first.x() - block_origin.x());
+  int ly = static_cast<int>(first.y() - block_origin.y());
+  int lz = static_cast<int>(first.z() - block_origin.z());
+  double sdf = range - (map_.voxelCenter(first) - origin).dot(dir);  // projective distance
+  const double dsx = sx * vs_ * dir.x(), dsy = sy * vs_ * dir.y(), dsz = sz * vs_ * dir.z();
+  const std::int64_t steps = (last - first).cwiseAbs().sum();
+  // Room for every voxel of this ray: a free-space ray can cross thousands.
+  if (queued_ + static_cast<std::size_t>(steps) + 1 > queue_.size()) {
+    flush();
+    if (static_cast<std::size_t>(steps) + 1 > queue_.size()) queue_.resize(static_cast<std::size_t>(steps) + 1);
+  }
+  QueuedUpdate* out = queue_.data() + queued_;
+  const double drop_start = -vs_, drop_scale = 1.0 / (tau_ - vs_);
+  const bool drop_off = params_.drop_off;
+  const float sdf_max = static_cast<float>(tau_);
+  bool dropped = false;
+  for (std::int64_t n = 0;; ++n) {
+    if (sdf >= -back_len) {
+      double w = w_ray;
+      if (drop_off && sdf < drop_start) w *= (tau_ + sdf) * drop_scale;
+      if (w > 0.0) {
+        if (block == nullptr ||
+            (crop_ && !map_.insideCropBox(map_.voxelCenter(block_origin + VoxelIndex(lx, ly, lz))))) {
+          dropped = true;
+        } else {
+          const std::uint32_t idx = layout_x_[lx] + layout_y_[ly] + layout_z_[lz];
+          block->touchForWrite(idx);
+          __builtin_prefetch(&block->voxels[idx], 1);
+          *out++ = {block, idx, std::min(static_cast<float>(sdf), sdf_max), w};
+        }
+      }
+    }
+    if (n == steps) break;
+    // The axis whose boundary comes first (ties: x before y before z).
+    int* l;
+    if (tx <= ty && tx <= tz) {
+      if (tx > 1.0) break;
+      tx += dtx;
+      sdf -= dsx;
+      lx += sx;
+      l = &lx;
+    } else if (ty <= tz) {
+      if (ty > 1.0) break;
+      ty += dty;
+      sdf -= dsy;
+      ly += sy;
+      l = &ly;
+    } else {
+      if (tz > 1.0) break;
+      tz += dtz;
+      sdf -= dsz;
+      lz += sz;
+      l = &lz;
+    }
+    if (static_cast<unsigned>(*l) >= static_cast<unsigned>(nps_)) {
+      const VoxelIndex voxel = block_origin + VoxelIndex(lx, ly, lz);
+      block = enterBlock(voxel, &block_origin);
+      lx = static_cast<int>(voxel.x() - block_origin.x());
+      ly = static_cast<int>(voxel.y() - block_origin.y());
+      lz = static_cast<int>(voxel.z() - block_origin.z());
+    }
+  }
+  const std::size_t added = static_cast<std::size_t>(out - (queue_.data() + queued_));
+  queued_ += added;
+  voxel_updates += added;
+  if (dropped) ++partly_dropped_rays;
+  if (queued_ >= kQueueFlush) flush();
+}
+
+}  // namespace
+
 void TsdfIntegratorParams::validate() const {
   if (!(truncation_voxels >= 1.0) || !std::isfinite(truncation_voxels))
     throw std::invalid_argument("tsdf truncation must be at least 1 voxel");
@@ -71,16 +244,16 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     int count = 0;
   };
-  FlatHashMap<int> slot(points.size() / 4 + 16);
-  std::vector<Merged> merged;
-  merged.reserve(points.size() / 4 + 16);
   const double min_r2 = params_.min_range * params_.min_range;
   const double max_r2 = params_.max_range * params_.max_range;
   Eigen::Isometry3d to_sensor = Eigen::Isometry3d::Identity();
   if (pose != nullptr) to_sensor = pose->inverse();
-  std::uint64_t last_key = ~0ull;
-  int last_slot = -1;
-  for (const auto& p : points) {
+  // First the voxel key of every point (kSkip: dropped), then the merge: a full frame's table
+  // is far larger than the caches, so the slot of the point a few places ahead is prefetched.
+  constexpr std::uint64_t kSkip = FlatHashMap<int>::kEmpty;
+  std::vector<std::uint64_t> keys(points.size(), kSkip);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Point& p = points[i];
     if (!p.allFinite()) {
       ++report.non_finite;
       continue;
@@ -91,7 +264,18 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
       continue;
     }
     const VoxelIndex v = map.voxelIndexOf(p);
-    const auto key = SpatialHashGrid::packKey(v.x(), v.y(), v.z());
+    keys[i] = SpatialHashGrid::packKey(v.x(), v.y(), v.z());
+  }
+  FlatHashMap<int> slot(points.size());  // never grows: at most one entry per point
+  std::vector<Merged> merged;
+  merged.reserve(points.size() / 4 + 16);
+  constexpr std::size_t kAhead = 16;
+  std::uint64_t last_key = kSkip;
+  int last_slot = -1;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (i + kAhead < points.size() && keys[i + kAhead] != kSkip) slot.prefetch(keys[i + kAhead]);
+    const std::uint64_t key = keys[i];
+    if (key == kSkip) continue;
     // Clouds come in image order: neighbouring pixels often share a voxel, so the previous
     // point's slot saves most hash lookups of a close-up view.
     if (key != last_key) {
@@ -104,9 +288,11 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
       last_slot = *ins.first;
     }
     Merged& m = merged[static_cast<std::size_t>(last_slot)];
-    m.sum += p;
+    m.sum += points[i];
     ++m.count;
   }
+  const auto merged_at = std::chrono::steady_clock::now();
+  report.merge_seconds = std::chrono::duration<double>(merged_at - start).count();
   PointList ends(merged.size());
   for (std::size_t i = 0; i < merged.size(); ++i) ends[i] = merged[i].sum / merged[i].count;
 
@@ -213,6 +399,8 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     for (const auto& e : errors)
       if (e) std::rethrow_exception(e);
   }
+  const auto analysed_at = std::chrono::steady_clock::now();
+  report.neighbourhood_seconds = std::chrono::duration<double>(analysed_at - merged_at).count();
   std::vector<char> outlier(ends.size(), 0);
   if (params_.remove_outliers && ends.size() > static_cast<std::size_t>(params_.outliers.k)) {
     outlier = flagStatisticalOutliers(knn, params_.outliers.std_mul);
@@ -220,10 +408,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   }
 
   const double tau = params_.truncation_voxels * vs;
-  const std::int64_t nps = map.voxelsPerSide();
-  std::vector<TsdfBlock*> touched;  // blocks whose new observations get merged in at the end
-  const bool crop = map.params().use_crop_box;
-  const double inv_vs = 1.0 / vs;
+  BandCaster caster(map, params_, tau);
   for (std::size_t i = 0; i < ends.size(); ++i) {
     if (outlier[i]) continue;
     const Eigen::Vector3d& p = ends[i];
@@ -237,75 +422,14 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     if (normals[i].allFinite())
       back_len = tau * std::max(0.25, std::abs(normals[i].dot(dir)));
     if (params_.weighting == TsdfIntegratorParams::Weighting::kInverseSquare) w_ray /= range * range;
-    const Eigen::Vector3d s = params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau, range));
-    const Eigen::Vector3d e = p + dir * back_len;
-    ++report.rays;
-
-    // Amanatides-Woo traversal of the voxels from s to e. The block, the index inside it and
-    // the projective distance are carried along incrementally; a block is looked up only when
-    // the ray crosses into the next one.
-    const Eigen::Vector3d a = s * inv_vs, b = e * inv_vs, d = b - a;
-    VoxelIndex cur = a.array().floor().cast<std::int64_t>();
-    const VoxelIndex last = b.array().floor().cast<std::int64_t>();
-    Eigen::Vector3d t_max, t_delta;
-    std::int64_t step[3];
-    for (int k = 0; k < 3; ++k) {
-      step[k] = d[k] > 0 ? 1 : (d[k] < 0 ? -1 : 0);
-      if (step[k] == 0) {
-        t_max[k] = t_delta[k] = std::numeric_limits<double>::infinity();
-      } else {
-        const double boundary = static_cast<double>(cur[k] + (step[k] > 0 ? 1 : 0));
-        t_max[k] = (boundary - a[k]) / d[k];
-        t_delta[k] = std::abs(1.0 / d[k]);
-      }
-    }
-    const std::int64_t stride[3] = {1, nps, nps * nps};
-    VoxelIndex block_origin = map.blockOriginOf(cur);
-    TsdfBlock* block = map.blockForUpdate(block_origin);
-    if (block != nullptr && (touched.empty() || touched.back() != block)) touched.push_back(block);
-    VoxelIndex local = cur - block_origin;
-    std::int64_t idx = local.x() + nps * (local.y() + nps * local.z());
-    double sdf = range - (map.voxelCenter(cur) - origin).dot(dir);  // projective distance
-    const double sdf_step[3] = {vs * dir.x(), vs * dir.y(), vs * dir.z()};
-    const std::int64_t max_steps = (last - cur).cwiseAbs().sum() + 1;
-    bool dropped = false;
-    for (std::int64_t n = 0; n <= max_steps; ++n) {
-      if (sdf >= -back_len) {
-        double w = w_ray;
-        if (params_.drop_off && sdf < -vs) w *= (tau + sdf) / (tau - vs);
-        if (w > 0.0) {
-          if (block == nullptr || (crop && !map.insideCropBox(map.voxelCenter(cur)))) {
-            dropped = true;
-          } else {
-            block->update(static_cast<std::uint32_t>(idx), std::min(sdf, tau), w, params_.max_weight);
-            ++report.voxel_updates;
-          }
-        }
-      }
-      if (cur == last) break;
-      int k = 0;
-      if (t_max[1] < t_max[k]) k = 1;
-      if (t_max[2] < t_max[k]) k = 2;
-      if (t_max[k] > 1.0) break;
-      cur[k] += step[k];
-      t_max[k] += t_delta[k];
-      sdf -= step[k] * sdf_step[k];
-      local[k] += step[k];
-      idx += step[k] * stride[k];
-      if (local[k] < 0 || local[k] >= nps) {
-        block_origin = map.blockOriginOf(cur);
-        block = map.blockForUpdate(block_origin);
-        if (block != nullptr && (touched.empty() || touched.back() != block)) touched.push_back(block);
-        local = cur - block_origin;
-        idx = local.x() + nps * (local.y() + nps * local.z());
-      }
-    }
-    if (dropped) ++report.outside_map;
+    caster.cast(p, origin, dir, range, w_ray, back_len);
   }
+  caster.finish();
+  report.rays = caster.rays;
+  report.voxel_updates = caster.voxel_updates;
+  report.outside_map = caster.partly_dropped_rays;
 
-  std::sort(touched.begin(), touched.end());
-  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-  for (TsdfBlock* b : touched) b->sortObserved();
+  report.ray_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - analysed_at).count();
 
   std::ostringstream warn;
   if (report.non_finite) warn << report.non_finite << " NaN/Inf points skipped; ";

@@ -10,6 +10,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#ifdef __linux__
+#include <sys/mman.h>
+#endif
+
 namespace fruit_shape_completion {
 
 namespace {
@@ -33,7 +37,43 @@ void TsdfMapParams::validate() const {
     throw std::invalid_argument("tsdf crop box must have crop_min < crop_max on every axis");
 }
 
-TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params) { params_.validate(); }
+VoxelLayout::VoxelLayout(int n) : n_(n), morton_(n > 0 && (n & (n - 1)) == 0), x_(n), y_(n), z_(n) {
+  for (int i = 0; i < n; ++i) {
+    if (morton_) {  // bit b of the coordinate goes to bit 3b (+1 for y, +2 for z)
+      std::uint32_t spread = 0;
+      for (int b = 0; (1 << b) < n; ++b) spread |= static_cast<std::uint32_t>((i >> b) & 1) << (3 * b);
+      x_[i] = spread;
+      y_[i] = spread << 1;
+      z_[i] = spread << 2;
+    } else {
+      x_[i] = static_cast<std::uint32_t>(i);
+      y_[i] = static_cast<std::uint32_t>(i * n);
+      z_[i] = static_cast<std::uint32_t>(i * n * n);
+    }
+  }
+}
+
+namespace {
+// Every third bit of x (bits 0, 3, 6, ...) packed into the low bits: up to 10 of them.
+int compactEveryThirdBit(std::uint32_t x) {
+  x &= 0x09249249u;
+  x = (x ^ (x >> 2)) & 0x030c30c3u;
+  x = (x ^ (x >> 4)) & 0x0300f00fu;
+  x = (x ^ (x >> 8)) & 0xff0000ffu;
+  x = (x ^ (x >> 16)) & 0x000003ffu;
+  return static_cast<int>(x);
+}
+}  // namespace
+
+Eigen::Vector3i VoxelLayout::coords(std::uint32_t idx) const {
+  if (!morton_) return Eigen::Vector3i(idx % n_, (idx / n_) % n_, idx / (n_ * n_));
+  return Eigen::Vector3i(compactEveryThirdBit(idx), compactEveryThirdBit(idx >> 1), compactEveryThirdBit(idx >> 2));
+}
+
+TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params), layout_(1) {
+  params_.validate();
+  layout_ = VoxelLayout(params_.voxels_per_side);
+}
 
 VoxelIndex TsdfMap::voxelIndexOf(const Eigen::Vector3d& p) const {
   return (p / params_.voxel_size).array().floor().cast<std::int64_t>();
@@ -48,13 +88,52 @@ bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
          ((p.array() >= params_.crop_min.array()).all() && (p.array() <= params_.crop_max.array()).all());
 }
 
-TsdfBlock::TsdfBlock(const VoxelIndex& o, int n)
+void VoxelArrayDeleter::operator()(TsdfVoxel* p) const {
+#ifdef __linux__
+  if (mapped_bytes != 0) {
+    munmap(p, mapped_bytes);
+    return;
+  }
+#endif
+  std::free(p);
+}
+
+namespace {
+// A zeroed array of `count` voxels: 2 MiB-aligned anonymous memory advised as huge pages if
+// asked and possible, else calloc.
+std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter> allocateVoxels(std::size_t count, bool huge_page) {
+  const std::size_t bytes = count * sizeof(TsdfVoxel);
+#ifdef __linux__
+  constexpr std::size_t kHuge = std::size_t(2) << 20;
+  if (bytes >= kHuge) {
+    const std::size_t len = (bytes + kHuge - 1) / kHuge * kHuge;
+    void* raw = mmap(nullptr, len + kHuge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (raw != MAP_FAILED) {
+      // Keep the 2 MiB-aligned part, give back the slack before and after it.
+      const auto base = reinterpret_cast<std::uintptr_t>(raw);
+      const std::uintptr_t aligned = (base + kHuge - 1) / kHuge * kHuge;
+      if (aligned > base) munmap(raw, aligned - base);
+      const std::uintptr_t tail = aligned + len, end = base + len + kHuge;
+      if (end > tail) munmap(reinterpret_cast<void*>(tail), end - tail);
+      if (huge_page) madvise(reinterpret_cast<void*>(aligned), len, MADV_HUGEPAGE);  // a hint; failing is harmless
+      return std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter>(reinterpret_cast<TsdfVoxel*>(aligned),
+                                                             VoxelArrayDeleter{len});
+    }
+  }
+#else
+  (void)huge_page;
+#endif
+  auto* p = static_cast<TsdfVoxel*>(std::calloc(count, sizeof(TsdfVoxel)));
+  if (p == nullptr) throw std::bad_alloc();
+  return std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter>(p, VoxelArrayDeleter{0});
+}
+}  // namespace
+
+TsdfBlock::TsdfBlock(const VoxelIndex& o, int n, bool huge_page)
     : origin(o),
       voxel_count(static_cast<std::uint32_t>(n) * n * n),
-      voxels(static_cast<TsdfVoxel*>(std::calloc(voxel_count, sizeof(TsdfVoxel))),
-             &std::free) {
-  if (!voxels) throw std::bad_alloc();
-}
+      voxels(allocateVoxels(voxel_count, huge_page)),
+      written_groups(voxel_count / kVoxelsPerPage / 64 + 1, 0) {}
 
 void TsdfBlock::sortObserved() {
   if (sorted_count == observed.size()) return;
@@ -94,8 +173,7 @@ const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
   const auto it = blocks_.find(blockKeyOf(origin));
   if (it == blocks_.end()) return nullptr;
   const VoxelIndex l = v - origin;
-  const std::int64_t n = params_.voxels_per_side;
-  return &it->second->voxels[static_cast<std::size_t>(l.x() + n * (l.y() + n * l.z()))];
+  return &it->second->voxels[layout_.index(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()))];
 }
 
 bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
@@ -118,7 +196,7 @@ TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
       if ((hi.array() < params_.crop_min.array()).any() || (lo.array() > params_.crop_max.array()).any())
         return nullptr;
     }
-    it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side)).first;
+    it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side, params_.huge_pages)).first;
   }
   cached_key_ = key;
   cached_block_ = it->second.get();
@@ -131,8 +209,8 @@ bool TsdfMap::setVoxel(const VoxelIndex& v, const TsdfVoxel& value) {
   TsdfBlock* block = blockForUpdate(origin);
   if (block == nullptr) return false;
   const VoxelIndex l = v - origin;
-  const std::int64_t n = params_.voxels_per_side;
-  const auto idx = static_cast<std::uint32_t>(l.x() + n * (l.y() + n * l.z()));
+  const std::uint32_t idx = layout_.index(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()));
+  block->touchForWrite(idx);
   if (block->voxels[idx].weight <= 0.0f) block->observed.push_back(idx);
   block->voxels[idx] = value;
   return true;
@@ -180,7 +258,10 @@ bool TsdfMap::save(const std::string& path, std::string* error) const {
     put(origin, sizeof(origin));
     put(&n, 4);
     for (std::uint32_t idx : b.observed) {
-      put(&idx, 4);
+      // Files keep the x-fastest index, whatever the layout in memory.
+      const Eigen::Vector3i l = layout_.coords(idx);
+      const std::uint32_t file_idx = static_cast<std::uint32_t>(l.x()) + vps * (l.y() + vps * l.z());
+      put(&file_idx, 4);
       put(&b.voxels[idx].distance, 4);
       put(&b.voxels[idx].weight, 4);
     }
@@ -241,6 +322,7 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
     for (auto& kv : loaded.blocks_) kv.second->sortObserved();
     blocks_.swap(loaded.blocks_);
     params_ = p;
+    layout_ = loaded.layout_;
     cached_key_ = ~0ull;
     cached_block_ = nullptr;
     return true;

@@ -15,7 +15,7 @@ struct BlockView {
   int n;
   const TsdfVoxel* at(int lx, int ly, int lz) const {
     if (lx >= 0 && ly >= 0 && lz >= 0 && lx < n && ly < n && lz < n)
-      return &block.voxels[static_cast<std::size_t>(lx + n * (ly + n * lz))];
+      return &block.voxels[map.layout().index(lx, ly, lz)];
     return map.voxel(block.origin + VoxelIndex(lx, ly, lz));
   }
 };
@@ -38,7 +38,8 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
       const std::uint32_t idx = block.observed[k];
       const TsdfVoxel& v = block.voxels[idx];
       if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) continue;
-      const int lx = idx % n, ly = (idx / n) % n, lz = idx / (n * n);
+      const Eigen::Vector3i l = map.layout().coords(idx);
+      const int lx = l.x(), ly = l.y(), lz = l.z();
       Eigen::Vector3d c = map.voxelCenter(block.origin + VoxelIndex(lx, ly, lz));
       if (params.project_to_zero_crossing) {
         Eigen::Vector3d g;
@@ -76,7 +77,8 @@ TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
     for (std::uint32_t idx : block.observed) {
       const TsdfVoxel& v0 = block.voxels[idx];
       if (v0.weight < min_weight || std::abs(v0.distance) > skip) continue;
-      const int lx = idx % n, ly = (idx / n) % n, lz = idx / (n * n);
+      const Eigen::Vector3i l = map.layout().coords(idx);
+      const int lx = l.x(), ly = l.y(), lz = l.z();
       double d[8];
       Eigen::Vector3d p[8];
       bool ok = true, pos = false, neg = false;

@@ -70,25 +70,39 @@ static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
   params.remove_outliers = params.incidence_limited_back_band = state.range(0) != 0;
   params.threads = static_cast<int>(state.range(1));
   const TsdfIntegrator integ(params);
-  std::size_t rays = 0;
+  std::size_t rays = 0, blocks = 0;
+  double merge = 0, neighbourhood = 0, cast = 0;  // phase seconds summed over the iterations
+  auto phases = [&](const IntegrationReport& r) {
+    merge += r.merge_seconds;
+    neighbourhood += r.neighbourhood_seconds;
+    cast += r.ray_seconds;
+    return r.rays;
+  };
   const bool warm = state.range(2) != 0;
   TsdfMap warm_map;
   if (warm) integ.integrate(warm_map, frame, cam.position);
   for (auto _ : state) {
     if (warm) {
-      rays = integ.integrate(warm_map, frame, cam.position).rays;
+      rays = phases(integ.integrate(warm_map, frame, cam.position));
     } else {
       state.PauseTiming();
       auto map = std::make_unique<TsdfMap>();
       state.ResumeTiming();
-      rays = integ.integrate(*map, frame, cam.position).rays;
+      rays = phases(integ.integrate(*map, frame, cam.position));
       state.PauseTiming();
+      blocks = map->blockCount();
       map.reset();  // freeing the blocks is not part of the integration
       state.ResumeTiming();
     }
   }
   state.counters["points"] = static_cast<double>(frame.size());
   state.counters["rays"] = static_cast<double>(rays);
+  state.counters["blocks"] = static_cast<double>(warm ? warm_map.blockCount() : blocks);
+  // Mean milliseconds per frame of each phase (IntegrationReport's timings).
+  const double per_ms = 1e3 / static_cast<double>(state.iterations());
+  state.counters["merge_ms"] = merge * per_ms;
+  state.counters["neighbourhood_ms"] = neighbourhood * per_ms;
+  state.counters["rays_ms"] = cast * per_ms;
 }
 BENCHMARK(BM_TsdfIntegrateFullFrame)
     ->Args({1, 1, 0})->Args({1, 1, 1})->Args({1, 2, 1})->Args({0, 1, 0})->Args({0, 1, 1})

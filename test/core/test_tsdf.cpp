@@ -5,6 +5,7 @@
 #include <fruit_shape_completion/tsdf_surface.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
@@ -381,4 +382,79 @@ TEST(TsdfMap, FullFrameOnTwoThreadsEqualsOneThread) {
   EXPECT_GT(wall, 10000u);
   EXPECT_LT(std::abs(sum / wall), 0.25 * a.voxelSize());
   EXPECT_LT(worst, 3 * a.voxelSize());
+}
+
+// The voxel layout inside a block: Morton order for power-of-two sides (each 2x2x2 group one
+// cache line, each 8x8x8 group one 4 KiB page), x fastest otherwise; both are bijections.
+TEST(TsdfMap, VoxelLayoutIsABijectionThatKeepsNeighboursTogether) {
+  for (int n : {64, 8, 12, 1}) {
+    const VoxelLayout layout(n);
+    EXPECT_EQ(layout.morton(), (n & (n - 1)) == 0) << n;
+    std::vector<char> seen(static_cast<std::size_t>(n) * n * n, 0);
+    for (int z = 0; z < n; ++z)
+      for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+          const std::uint32_t idx = layout.index(x, y, z);
+          ASSERT_LT(idx, seen.size()) << n;
+          ASSERT_FALSE(seen[idx]) << "index used twice, n = " << n;
+          seen[idx] = 1;
+          ASSERT_EQ(layout.coords(idx), Eigen::Vector3i(x, y, z)) << n;
+          if (layout.morton()) {  // aligned groups of 2^3 and 8^3 voxels are contiguous
+            EXPECT_EQ(idx / 8, layout.index(x & ~1, y & ~1, z & ~1) / 8);
+            EXPECT_EQ(idx / 512, layout.index(x & ~7, y & ~7, z & ~7) / 512);
+          }
+        }
+  }
+}
+
+// Neither huge pages nor the block side change what is mapped; files keep the x-fastest voxel
+// index whatever the layout in memory.
+TEST(TsdfMap, BlockMemoryAndLayoutDoNotChangeTheMap) {
+  AnalyticScene scene;
+  scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0.0, 0.5, 0.5)));
+  scene.planes.push_back({Eigen::Vector3d(0, 1.0, 0), Eigen::Vector3d(0, -1, 0)});
+  const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(0, 0, 0.5), Eigen::Vector3d(0, 1, 0.5), 320, 240);
+  const PointList frame = renderDepth(scene, cam, 0.001, 5).points;
+  TsdfMapParams plain, huge, linear;
+  huge.huge_pages = true;
+  linear.voxels_per_side = 48;  // not a power of two: x-fastest layout, other block borders
+  auto surfaceOf = [&](const TsdfMapParams& p) {
+    TsdfMap map(p);
+    const IntegrationReport r = TsdfIntegrator().integrate(map, frame, cam.position);
+    EXPECT_TRUE(r.ok()) << r.error;
+    PointList s = extractSurfacePoints(map);
+    std::sort(s.begin(), s.end(), [](const Point& a, const Point& b) {
+      return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+    });
+    return s;
+  };
+  const PointList a = surfaceOf(plain), b = surfaceOf(huge), c = surfaceOf(linear);
+  ASSERT_GT(a.size(), 5000u);
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_EQ(a.size(), c.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i], b[i]) << i;
+    ASSERT_LT((a[i] - c[i]).norm(), 1e-12) << i;
+  }
+
+  TsdfMap one;
+  TsdfVoxel v;
+  v.distance = 0.001f;
+  v.weight = 2.0f;
+  ASSERT_TRUE(one.setVoxel(VoxelIndex(1, 2, 3), v));
+  const std::string path = "/tmp/fsc_layout_" + std::to_string(::getpid()) + ".tsdf";
+  std::string err;
+  ASSERT_TRUE(one.save(path, &err)) << err;
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(8 + 4 + 8 + 4 + 8 + 3 * 8 + 4);  // header, block origin, voxel count
+  std::uint32_t idx = 0;
+  in.read(reinterpret_cast<char*>(&idx), 4);
+  EXPECT_EQ(idx, 1u + 64u * (2u + 64u * 3u));
+  TsdfMap back;
+  ASSERT_TRUE(back.load(path, &err)) << err;
+  const TsdfVoxel* got = back.voxel(VoxelIndex(1, 2, 3));
+  ASSERT_NE(got, nullptr);
+  EXPECT_EQ(got->weight, 2.0f);
+  EXPECT_EQ(back.observedVoxelCount(), 1u);
+  std::remove(path.c_str());
 }
