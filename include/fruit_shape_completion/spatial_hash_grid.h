@@ -65,17 +65,36 @@ class SpatialHashGrid {
 
 template <typename Visit>
 void SpatialHashGrid::forEachCell(std::size_t first, std::size_t last, Visit&& visit) const {
+  // near[column][dz + 1]: the range of cell (x + dx, y + dy, z + dz), column = 3 (dx + 1) + dy + 1;
+  // {0, 0} when empty. Cells come in key order, so the next cell is often the one above in z:
+  // its 27 neighbours then share 18 with this one's and only 9 are looked up.
+  std::pair<int, int> near[9][3];
+  auto lookup = [this](std::int64_t x, std::int64_t y, std::int64_t z) {
+    const std::pair<int, int>* r = cells_.find(packKey(x, y, z));
+    return r != nullptr ? *r : std::make_pair(0, 0);
+  };
   std::pair<int, int> ranges[27];
+  const Cell* prev = nullptr;
   for (std::size_t c = first; c < last && c < cell_list_.size(); ++c) {
     const Cell& cell = cell_list_[c];
-    int n = 0;
+    const bool above = prev != nullptr && prev->x == cell.x && prev->y == cell.y && prev->z + 1 == cell.z;
     for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          const std::pair<int, int>* r = cells_.find(packKey(cell.x + dx, cell.y + dy, cell.z + dz));
-          if (r != nullptr) ranges[n++] = *r;
+      for (int dy = -1; dy <= 1; ++dy) {
+        std::pair<int, int>* col = near[3 * (dx + 1) + dy + 1];
+        if (above) {
+          col[0] = col[1];
+          col[1] = col[2];
+          col[2] = lookup(cell.x + dx, cell.y + dy, cell.z + 1);
+        } else {
+          for (int dz = -1; dz <= 1; ++dz) col[dz + 1] = lookup(cell.x + dx, cell.y + dy, cell.z + dz);
         }
+      }
+    int n = 0;
+    for (const auto& col : near)
+      for (const auto& r : col)
+        if (r.second > r.first) ranges[n++] = r;
     visit(cell, ranges, n);
+    prev = &cell;
   }
 }
 
