@@ -27,6 +27,7 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   read(nh, "voxel_size", p.map.voxel_size);
   read(nh, "voxels_per_side", p.map.voxels_per_side);
   read(nh, "max_blocks", p.map.max_blocks);
+  read(nh, "huge_pages", p.map.huge_pages);
   read(nh, "truncation_voxels", p.integrator.truncation_voxels);
   read(nh, "max_weight", p.integrator.max_weight);
   read(nh, "min_range", p.integrator.min_range);
