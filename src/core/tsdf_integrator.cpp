@@ -301,18 +301,18 @@ void analyseNeighbourhoods(const SpatialHashGrid& grid, std::size_t first, std::
         }
         normals[i] = n;
       }
-      if (k > 0) {
-        // The k nearest besides the point itself: the k + 1 smallest distances within the
-        // radius, one of them the point's own 0.
-        for (std::size_t q = 0; q < n_in; ++q) near[q] = dist[static_cast<std::size_t>(sel[q])];
-        if (n_in < static_cast<std::size_t>(k) + 1) {
-          knn[i] = radius;
-        } else {
-          std::nth_element(near.begin(), near.begin() + k, near.begin() + static_cast<std::ptrdiff_t>(n_in));
-          float sum = 0.0f;
-          for (int q = 0; q <= k; ++q) sum += std::sqrt(near[q]);
-          knn[i] = static_cast<double>(sum) / k;
+      if (k > 0) {  // the neighbours within the radius, less the point itself (one distance 0)
+        std::size_t n_near = 0;
+        bool self_seen = false;
+        for (std::size_t q = 0; q < n_in; ++q) {
+          const float d = dist[static_cast<std::size_t>(sel[q])];
+          if (!self_seen && d == 0.0f) {
+            self_seen = true;
+            continue;
+          }
+          near[n_near++] = d;
         }
+        knn[i] = meanKnnDistance(near.data(), n_near, k, radius);
       }
     }
   });

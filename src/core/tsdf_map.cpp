@@ -99,8 +99,9 @@ void VoxelArrayDeleter::operator()(TsdfVoxel* p) const {
 }
 
 namespace {
-// A zeroed array of `count` voxels: 2 MiB-aligned anonymous memory advised as huge pages if
-// asked and possible, else calloc.
+// A zeroed array of `count` voxels: for 2 MiB or more on Linux, 2 MiB-aligned anonymous memory
+// (page-aligned, so each 8x8x8 Morton group is one page), advised as huge pages if asked; else
+// calloc.
 std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter> allocateVoxels(std::size_t count, bool huge_page) {
   const std::size_t bytes = count * sizeof(TsdfVoxel);
 #ifdef __linux__
