@@ -52,6 +52,19 @@ class FlatHashMap {
 
   void clear() { rehash(16); }
 
+  // Empties the map for about `expected` keys, keeping the slot array when it is the right
+  // size (refilling it is much cheaper than fresh memory).
+  void reset(std::size_t expected) {
+    const std::size_t capacity = capacityFor(expected);
+    if (slots_.size() != capacity) {
+      std::vector<Slot>(capacity).swap(slots_);
+      mask_ = capacity - 1;
+    } else {
+      for (auto& s : slots_) s.key = kEmpty;
+    }
+    size_ = 0;
+  }
+
  private:
   struct Slot {
     std::uint64_t key = kEmpty;

@@ -160,6 +160,7 @@ class TsdfMap {
 
   TsdfMapParams params_;
   VoxelLayout layout_;
+  int block_shift_ = -1;  // log2(voxels_per_side) for powers of two (shifts, not divisions)
   std::unordered_map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;
   // One-entry cache for updates: rays touch the same block many times in a row.
   std::uint64_t cached_key_ = ~0ull;

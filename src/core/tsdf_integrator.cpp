@@ -9,6 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 #include <exception>
+#include <memory>
+#include <mutex>
 #include <thread>
 
 namespace fruit_shape_completion {
@@ -42,6 +44,24 @@ class BandCaster {
 
   void cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
             double range, double w_ray, double back_len);
+  // The same for a ray whose band lies inside `block` (bandVoxels() one voxel or more from its
+  // faces): the map's block table is not touched, so casters on disjoint blocks may run
+  // concurrently. Should rounding carry the traversal out of the block anyway, the ray ends.
+  void castWithin(TsdfBlock* block, const VoxelIndex& block_origin, const Eigen::Vector3d& p,
+                  const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range, double w_ray,
+                  double back_len) {
+    fixed_block_ = block;
+    fixed_origin_ = block_origin;
+    cast(p, origin, dir, range, w_ray, back_len);
+    fixed_block_ = nullptr;
+  }
+  // The first and last voxel of a ray's band (what cast() traverses between).
+  void bandVoxels(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                  double range, double back_len, VoxelIndex* first, VoxelIndex* last) const {
+    const Eigen::Vector3d s = bandStart(p, origin, dir, range);
+    *first = (s * inv_vs_).array().floor().cast<std::int64_t>();
+    *last = ((p + dir * back_len) * inv_vs_).array().floor().cast<std::int64_t>();
+  }
   // Applies what is queued and merges each touched block's new voxels into its sorted list.
   void finish() {
     flush();
@@ -67,9 +87,19 @@ class BandCaster {
     }
     queued_ = 0;
   }
+  Eigen::Vector3d bandStart(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                            double range) const {
+    return params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau_, range));
+  }
   TsdfBlock* enterBlock(const VoxelIndex& voxel, VoxelIndex* block_origin) {
-    *block_origin = map_.blockOriginOf(voxel);
-    TsdfBlock* block = map_.blockForUpdate(*block_origin);
+    TsdfBlock* block;
+    if (fixed_block_ != nullptr) {
+      *block_origin = fixed_origin_;
+      block = fixed_block_;
+    } else {
+      *block_origin = map_.blockOriginOf(voxel);
+      block = map_.blockForUpdate(*block_origin);
+    }
     if (block != nullptr && (touched_.empty() || touched_.back() != block)) touched_.push_back(block);
     return block;
   }
@@ -83,11 +113,13 @@ class BandCaster {
   std::vector<QueuedUpdate> queue_;
   std::size_t queued_ = 0;
   std::vector<TsdfBlock*> touched_;
+  TsdfBlock* fixed_block_ = nullptr;  // castWithin()
+  VoxelIndex fixed_origin_;
 };
 
 void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                       double range, double w_ray, double back_len) {
-  const Eigen::Vector3d s = params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau_, range));
+  const Eigen::Vector3d s = bandStart(p, origin, dir, range);
   const Eigen::Vector3d e = p + dir * back_len;
   ++rays;
 
@@ -170,6 +202,7 @@ void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
       l = &lz;
     }
     if (static_cast<unsigned>(*l) >= static_cast<unsigned>(nps_)) {
+      if (fixed_block_ != nullptr) break;  // castWithin: never another block
       const VoxelIndex voxel = block_origin + VoxelIndex(lx, ly, lz);
       block = enterBlock(voxel, &block_origin);
       lx = static_cast<int>(voxel.x() - block_origin.x());
@@ -318,7 +351,57 @@ void analyseNeighbourhoods(const SpatialHashGrid& grid, std::size_t first, std::
   });
 }
 
+// Clouds of at least this many merged points are worth more than one thread.
+constexpr std::size_t kParallelFrom = 20000;
+
+// Runs part(t) for t in [0, parts): part 0 on this thread, the others on their own. Nothing may
+// escape a part before every thread is joined: each part keeps its exception, the first one
+// is rethrown afterwards (as one thread doing all parts would throw it).
+template <typename Part>
+void runParts(std::size_t parts, Part&& part) {
+  std::vector<std::exception_ptr> errors(parts);
+  auto guarded = [&](std::size_t t) {
+    try {
+      part(t);
+    } catch (...) {
+      errors[t] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (std::size_t t = 1; t < parts; ++t) {
+    try {
+      pool.emplace_back(guarded, t);
+    } catch (...) {  // no thread to be had: do it here
+      guarded(t);
+    }
+  }
+  guarded(0);
+  for (auto& th : pool) th.join();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
 }  // namespace
+
+struct TsdfIntegrator::Scratch {
+  struct Merged {  // the points of one voxel
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int count = 0;
+  };
+  std::vector<std::uint64_t> keys;
+  FlatHashMap<int> slot;
+  std::vector<Merged> merged;
+  PointList ends;
+  std::vector<double> knn;
+  std::vector<Eigen::Vector3d> normals;
+  std::vector<char> outlier;
+  std::vector<int> ray_block;
+};
+
+void TsdfIntegrator::releaseScratch() const {
+  std::lock_guard<std::mutex> lock(scratch_.mutex);
+  scratch_.data.reset();
+}
 
 void TsdfIntegratorParams::validate() const {
   if (!(truncation_voxels >= 1.0) || !std::isfinite(truncation_voxels))
@@ -372,12 +455,22 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     return done();
   }
 
+  // Scratch buffers kept between calls: a full frame needs ~40 MB of them, and memory fresh
+  // from the OS costs a page fault per 4 KiB (~1.4 us each here: 10 ms a frame). Another
+  // thread's call meanwhile uses its own.
+  std::unique_lock<std::mutex> scratch_lock(scratch_.mutex, std::try_to_lock);
+  std::unique_ptr<Scratch> own_scratch;
+  Scratch* ws;
+  if (scratch_lock.owns_lock()) {
+    if (!scratch_.data) scratch_.data = std::make_shared<Scratch>();
+    ws = scratch_.data.get();
+  } else {
+    own_scratch = std::make_unique<Scratch>();
+    ws = own_scratch.get();
+  }
+
   // Merge points per end-point voxel: mean position and count.
   const double vs = map.voxelSize();
-  struct Merged {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    int count = 0;
-  };
   const double min_r2 = params_.min_range * params_.min_range;
   const double max_r2 = params_.max_range * params_.max_range;
   Eigen::Isometry3d to_sensor = Eigen::Isometry3d::Identity();
@@ -385,7 +478,8 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   // First the voxel key of every point (kSkip: dropped), then the merge: a full frame's table
   // is far larger than the caches, so the slot of the point a few places ahead is prefetched.
   constexpr std::uint64_t kSkip = FlatHashMap<int>::kEmpty;
-  std::vector<std::uint64_t> keys(points.size(), kSkip);
+  std::vector<std::uint64_t>& keys = ws->keys;
+  keys.assign(points.size(), kSkip);
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Point& p = points[i];
     if (!p.allFinite()) {
@@ -400,9 +494,10 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     const VoxelIndex v = map.voxelIndexOf(p);
     keys[i] = SpatialHashGrid::packKey(v.x(), v.y(), v.z());
   }
-  FlatHashMap<int> slot(points.size());  // never grows: at most one entry per point
-  std::vector<Merged> merged;
-  merged.reserve(points.size() / 4 + 16);
+  FlatHashMap<int>& slot = ws->slot;
+  slot.reset(points.size());  // never grows: at most one entry per point
+  std::vector<Scratch::Merged>& merged = ws->merged;
+  merged.clear();
   constexpr std::size_t kAhead = 16;
   std::uint64_t last_key = kSkip;
   int last_slot = -1;
@@ -421,81 +516,144 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
       last_key = key;
       last_slot = *ins.first;
     }
-    Merged& m = merged[static_cast<std::size_t>(last_slot)];
+    Scratch::Merged& m = merged[static_cast<std::size_t>(last_slot)];
     m.sum += points[i];
     ++m.count;
   }
   const auto merged_at = std::chrono::steady_clock::now();
   report.merge_seconds = std::chrono::duration<double>(merged_at - start).count();
-  PointList ends(merged.size());
+  PointList& ends = ws->ends;
+  ends.resize(merged.size());
   for (std::size_t i = 0; i < merged.size(); ++i) ends[i] = merged[i].sum / merged[i].count;
 
   // One neighbourhood pass over the merged end points gives both the outlier statistics and
   // the surface normals (PCA) for the incidence-limited band behind the surface.
   const double radius = params_.remove_outliers ? params_.outliers.search_radius : 2.5 * vs;
   const bool analyse = params_.remove_outliers || params_.incidence_limited_back_band;
-  const SpatialHashGrid grid(analyse ? ends : PointList(), radius);
-  std::vector<double> knn(ends.size(), radius);
-  std::vector<Eigen::Vector3d> normals(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
-  auto analyseCells = [&](std::size_t first, std::size_t last) {
-    analyseNeighbourhoods(grid, first, last, radius, params_.remove_outliers ? params_.outliers.k : 0,
-                          params_.incidence_limited_back_band, knn, normals);
-  };
+  std::vector<double>& knn = ws->knn;
+  std::vector<Eigen::Vector3d>& normals = ws->normals;
+  knn.assign(ends.size(), radius);
+  normals.assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
   if (analyse) {
-    const std::size_t cells = grid.cells().size();
-    const std::size_t parts = ends.size() >= 20000 ? static_cast<std::size_t>(params_.threads) : 1;
-    // Nothing may escape a part before every thread is joined: each part keeps its exception,
-    // the first one is rethrown afterwards (as the single-threaded pass would throw it).
-    std::vector<std::exception_ptr> errors(parts);
-    auto part = [&](std::size_t t) {
-      try {
-        analyseCells(cells * t / parts, cells * (t + 1) / parts);
-      } catch (...) {
-        errors[t] = std::current_exception();
-      }
+    const SpatialHashGrid grid(ends, radius);
+    auto analyseCells = [&](std::size_t first, std::size_t last) {
+      analyseNeighbourhoods(grid, first, last, radius, params_.remove_outliers ? params_.outliers.k : 0,
+                            params_.incidence_limited_back_band, knn, normals);
     };
-    std::vector<std::thread> pool;
-    for (std::size_t t = 1; t < parts; ++t) {
-      try {
-        pool.emplace_back(part, t);
-      } catch (...) {  // no thread to be had: do it here
-        part(t);
-      }
-    }
-    part(0);
-    for (auto& th : pool) th.join();
-    for (const auto& e : errors)
-      if (e) std::rethrow_exception(e);
+    const std::size_t cells = grid.cells().size();
+    const std::size_t parts = ends.size() >= kParallelFrom ? static_cast<std::size_t>(params_.threads) : 1;
+    runParts(parts, [&](std::size_t t) { analyseCells(cells * t / parts, cells * (t + 1) / parts); });
   }
   const auto analysed_at = std::chrono::steady_clock::now();
   report.neighbourhood_seconds = std::chrono::duration<double>(analysed_at - merged_at).count();
-  std::vector<char> outlier(ends.size(), 0);
+  std::vector<char>& outlier = ws->outlier;
+  outlier.assign(ends.size(), 0);
   if (params_.remove_outliers && ends.size() > static_cast<std::size_t>(params_.outliers.k)) {
     outlier = flagStatisticalOutliers(knn, params_.outliers.std_mul);
     report.outliers = std::count(outlier.begin(), outlier.end(), 1);
   }
 
+  // The ray of merged point i: false if it has none (an outlier, or a point at the sensor).
   const double tau = params_.truncation_voxels * vs;
-  BandCaster caster(map, params_, tau);
-  for (std::size_t i = 0; i < ends.size(); ++i) {
-    if (outlier[i]) continue;
+  struct Ray {
+    Eigen::Vector3d dir;
+    double range, weight, back_len;
+  };
+  auto rayOf = [&](std::size_t i, Ray* ray) {
+    if (outlier[i]) return false;
     const Eigen::Vector3d& p = ends[i];
-    const double range = (p - origin).norm();
-    if (!(range > 0.0)) continue;  // a point at the sensor has no ray direction
-    const Eigen::Vector3d dir = (p - origin) / range;
-    double w_ray = merged[i].count;
+    ray->range = (p - origin).norm();
+    if (!(ray->range > 0.0)) return false;  // a point at the sensor has no ray direction
+    ray->dir = (p - origin) / ray->range;
+    ray->weight = merged[i].count;
     // Behind the surface a grazing ray soon leaves a curved fruit again; the voxels it would
     // then mark as inside lie outside. Its band there is cut to tau * cos(incidence).
-    double back_len = tau;
-    if (normals[i].allFinite())
-      back_len = tau * std::max(0.25, std::abs(normals[i].dot(dir)));
-    if (params_.weighting == TsdfIntegratorParams::Weighting::kInverseSquare) w_ray /= range * range;
-    caster.cast(p, origin, dir, range, w_ray, back_len);
+    ray->back_len = tau;
+    if (normals[i].allFinite()) ray->back_len = tau * std::max(0.25, std::abs(normals[i].dot(ray->dir)));
+    if (params_.weighting == TsdfIntegratorParams::Weighting::kInverseSquare)
+      ray->weight /= ray->range * ray->range;
+    return true;
+  };
+  auto tally = [&](const BandCaster& c) {
+    report.rays += c.rays;
+    report.voxel_updates += c.voxel_updates;
+    report.outside_map += c.partly_dropped_rays;
+  };
+  BandCaster caster(map, params_, tau);
+  const std::size_t parts = static_cast<std::size_t>(params_.threads);
+  if (parts < 2 || ends.size() < kParallelFrom || params_.carve_free_space) {
+    Ray r;
+    for (std::size_t i = 0; i < ends.size(); ++i)
+      if (rayOf(i, &r)) caster.cast(ends[i], origin, r.dir, r.range, r.weight, r.back_len);
+  } else {
+    // In parallel: a ray whose band lies inside one block (~85 % of a full frame's: the band
+    // is ~9 of a block's 64 voxels) goes to the thread owning that block; blocks are dealt out
+    // by ray count, largest first. The rest, crossing block faces, follow on this thread.
+    // Each voxel then sees its rays in the same order on every run, though not in the order
+    // of the cloud (as with one thread): the map differs from that only by float rounding.
+    const int nps = map.voxelsPerSide();
+    std::vector<int>& ray_block = ws->ray_block;  // index into `blocks`; -1: crossing or none
+    ray_block.assign(ends.size(), -1);
+    std::vector<TsdfBlock*> blocks;
+    std::vector<VoxelIndex> block_origins;
+    std::vector<std::size_t> block_rays;
+    FlatHashMap<int> block_ids(256);
+    TsdfBlock* last_block = nullptr;
+    int last_id = -1;
+    Ray r;
+    for (std::size_t i = 0; i < ends.size(); ++i) {
+      if (!rayOf(i, &r)) continue;
+      VoxelIndex first, last;
+      caster.bandVoxels(ends[i], origin, r.dir, r.range, r.back_len, &first, &last);
+      const VoxelIndex bo = map.blockOriginOf(first);
+      const VoxelIndex lf = first - bo, ll = last - bo;
+      // A voxel of margin: rounding may carry a traversal one voxel past `last`.
+      if (lf.minCoeff() < 1 || ll.minCoeff() < 1 || lf.maxCoeff() > nps - 2 || ll.maxCoeff() > nps - 2) continue;
+      TsdfBlock* block = map.blockForUpdate(bo);
+      if (block == nullptr) continue;  // the serial pass counts what is dropped
+      if (block != last_block) {
+        const auto ins = block_ids.insert(reinterpret_cast<std::uintptr_t>(block));
+        if (ins.second) {
+          *ins.first = static_cast<int>(blocks.size());
+          blocks.push_back(block);
+          block_origins.push_back(bo);
+          block_rays.push_back(0);
+        }
+        last_block = block;
+        last_id = *ins.first;
+      }
+      ray_block[i] = last_id;
+      ++block_rays[static_cast<std::size_t>(last_id)];
+    }
+    std::vector<std::size_t> order(blocks.size()), load(parts, 0), owner(blocks.size());
+    for (std::size_t b = 0; b < order.size(); ++b) order[b] = b;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return block_rays[a] != block_rays[b] ? block_rays[a] > block_rays[b] : a < b;
+    });
+    for (std::size_t b : order) {
+      const std::size_t t = static_cast<std::size_t>(std::min_element(load.begin(), load.end()) - load.begin());
+      owner[b] = t;
+      load[t] += block_rays[b];
+    }
+    std::vector<std::unique_ptr<BandCaster>> casters(parts);
+    runParts(parts, [&](std::size_t t) {
+      casters[t] = std::make_unique<BandCaster>(map, params_, tau);
+      BandCaster& c = *casters[t];
+      Ray tr;
+      for (std::size_t i = 0; i < ends.size(); ++i) {
+        const int b = ray_block[i];
+        if (b < 0 || owner[static_cast<std::size_t>(b)] != t || !rayOf(i, &tr)) continue;
+        c.castWithin(blocks[static_cast<std::size_t>(b)], block_origins[static_cast<std::size_t>(b)], ends[i], origin,
+                     tr.dir, tr.range, tr.weight, tr.back_len);
+      }
+      c.finish();
+    });
+    for (const auto& c : casters) tally(*c);
+    for (std::size_t i = 0; i < ends.size(); ++i)
+      if (ray_block[i] < 0 && rayOf(i, &r)) caster.cast(ends[i], origin, r.dir, r.range, r.weight, r.back_len);
   }
   caster.finish();
-  report.rays = caster.rays;
-  report.voxel_updates = caster.voxel_updates;
-  report.outside_map = caster.partly_dropped_rays;
+  tally(caster);
 
   report.ray_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - analysed_at).count();
 

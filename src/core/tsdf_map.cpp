@@ -73,6 +73,11 @@ Eigen::Vector3i VoxelLayout::coords(std::uint32_t idx) const {
 TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params), layout_(1) {
   params_.validate();
   layout_ = VoxelLayout(params_.voxels_per_side);
+  const int n = params_.voxels_per_side;
+  if ((n & (n - 1)) == 0) {
+    block_shift_ = 0;
+    while ((1 << block_shift_) < n) ++block_shift_;
+  }
 }
 
 VoxelIndex TsdfMap::voxelIndexOf(const Eigen::Vector3d& p) const {
@@ -158,11 +163,17 @@ void TsdfBlock::sortObserved() {
 }
 
 VoxelIndex TsdfMap::blockOriginOf(const VoxelIndex& v) const {
+  if (block_shift_ >= 0) {  // floor to a multiple of a power of two: clear the low bits
+    const std::int64_t mask = ~((std::int64_t(1) << block_shift_) - 1);
+    return VoxelIndex(v.x() & mask, v.y() & mask, v.z() & mask);
+  }
   const std::int64_t n = params_.voxels_per_side;
   return VoxelIndex(floorDiv(v.x(), n) * n, floorDiv(v.y(), n) * n, floorDiv(v.z(), n) * n);
 }
 
 std::uint64_t TsdfMap::blockKeyOf(const VoxelIndex& o) const {
+  if (block_shift_ >= 0)  // o is a multiple of 2^shift: the shift divides exactly
+    return SpatialHashGrid::packKey(o.x() >> block_shift_, o.y() >> block_shift_, o.z() >> block_shift_);
   const std::int64_t n = params_.voxels_per_side;
   return SpatialHashGrid::packKey(o.x() / n, o.y() / n, o.z() / n);
 }

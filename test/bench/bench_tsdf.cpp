@@ -105,7 +105,8 @@ static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
   state.counters["rays_ms"] = cast * per_ms;
 }
 BENCHMARK(BM_TsdfIntegrateFullFrame)
-    ->Args({1, 1, 0})->Args({1, 1, 1})->Args({1, 2, 1})->Args({0, 1, 0})->Args({0, 1, 1})
+    ->Args({1, 1, 0})->Args({1, 1, 1})->Args({1, 2, 0})->Args({1, 2, 1})
+    ->Args({0, 1, 0})->Args({0, 1, 1})->Args({0, 2, 0})->Args({0, 2, 1})
     ->Unit(benchmark::kMillisecond);
 
 // Surface extraction from a map holding 50 fruits, each cluster of 5 seen from 6 directions.
