@@ -2,8 +2,9 @@
 # Builds the ROS-free tests with a sanitizer and runs them (not part of CI: ~10 min on 2 cores).
 # Usage: scripts/sanitize.sh asan|tsan
 #   asan: AddressSanitizer + UndefinedBehaviorSanitizer over core, sim and planner tests
-#   tsan: ThreadSanitizer over the tests with threads (TSDF neighbour pass, estimator shared by
-#         a view thread and a query thread, 2-thread renderer in planner episodes)
+#   tsan: ThreadSanitizer over the tests with threads (TSDF neighbour pass and ray casting, one
+#         integrator called from two threads, estimator shared by a view thread and a query
+#         thread, 2-thread renderer in planner episodes)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 KIND="${1:-}"

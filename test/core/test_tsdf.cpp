@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <thread>
 #include <unistd.h>
 
 using namespace fruit_shape_completion;
@@ -340,6 +341,34 @@ TEST(TsdfMap, BadInputIsRefusedWithAMessageAndTheMapKept) {
 // A full VGA frame (a wall behind two fruits, with depth noise and a few stray points): the
 // neighbourhood pass on two threads gives exactly the map of one thread, and every block's
 // list of observed voxels is strictly ascending (the bitmask sort of large batches).
+// One const integrator used by two threads at once (each into its own map): a call that finds
+// the kept scratch buffers busy uses its own; both maps equal those of lone calls.
+TEST(TsdfMap, OneIntegratorServesTwoThreadsAtOnce) {
+  AnalyticScene scene;
+  scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0.0, 0.5, 0.5)));
+  const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(0, 0.1, 0.5), Eigen::Vector3d(0, 0.5, 0.5));
+  const PointList frame = renderDepth(scene, cam).points;
+  const TsdfIntegrator integ;
+  TsdfMap reference;
+  for (int rep = 0; rep < 5; ++rep) ASSERT_TRUE(integ.integrate(reference, frame, cam.position).ok());
+  const PointList expected = extractSurfacePoints(reference);
+  ASSERT_GT(expected.size(), 300u);  // the visible half of the sphere
+  PointList got[2];
+  std::thread other([&] {
+    TsdfMap m;
+    for (int rep = 0; rep < 5; ++rep) integ.integrate(m, frame, cam.position);
+    got[1] = extractSurfacePoints(m);
+  });
+  TsdfMap m;
+  for (int rep = 0; rep < 5; ++rep) integ.integrate(m, frame, cam.position);
+  got[0] = extractSurfacePoints(m);
+  other.join();
+  for (const PointList& g : got) {  // the same arithmetic: the same surface, to the bit
+    ASSERT_EQ(g.size(), expected.size());
+    for (std::size_t k = 0; k < g.size(); ++k) ASSERT_EQ(g[k], expected[k]) << k;
+  }
+}
+
 // The threaded ray casting drops what falls outside a crop box exactly as one thread does.
 TEST(TsdfMap, ThreadedRayCastingKeepsTheCropBox) {
   AnalyticScene scene;
