@@ -1,3 +1,4 @@
+#include <fruit_shape_completion/parallel_parts.h>
 #include <fruit_shape_completion/spatial_hash_grid.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 
@@ -8,10 +9,8 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
-#include <exception>
 #include <memory>
 #include <mutex>
-#include <thread>
 
 namespace fruit_shape_completion {
 
@@ -58,9 +57,10 @@ class BandCaster {
   // The first and last voxel of a ray's band (what cast() traverses between).
   void bandVoxels(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                   double range, double back_len, VoxelIndex* first, VoxelIndex* last) const {
-    const Eigen::Vector3d s = bandStart(p, origin, dir, range);
-    *first = (s * inv_vs_).array().floor().cast<std::int64_t>();
-    *last = ((p + dir * back_len) * inv_vs_).array().floor().cast<std::int64_t>();
+    Eigen::Vector3d a, b;
+    bandEnds(p, origin, dir, range, back_len, &a, &b);
+    *first = a.array().floor().cast<std::int64_t>();
+    *last = b.array().floor().cast<std::int64_t>();
   }
   // Applies what is queued and merges each touched block's new voxels into its sorted list.
   void finish() {
@@ -87,9 +87,13 @@ class BandCaster {
     }
     queued_ = 0;
   }
-  Eigen::Vector3d bandStart(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
-                            double range) const {
-    return params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau_, range));
+  // The band's start and end in voxel units: one computation for cast() and bandVoxels(), so
+  // the parallel pass classifies a ray by exactly the voxels its traversal will visit.
+  void bandEnds(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range,
+                double back_len, Eigen::Vector3d* a, Eigen::Vector3d* b) const {
+    const Eigen::Vector3d s = params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau_, range));
+    *a = s * inv_vs_;
+    *b = (p + dir * back_len) * inv_vs_;
   }
   TsdfBlock* enterBlock(const VoxelIndex& voxel, VoxelIndex* block_origin) {
     TsdfBlock* block;
@@ -119,14 +123,14 @@ class BandCaster {
 
 void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                       double range, double w_ray, double back_len) {
-  const Eigen::Vector3d s = bandStart(p, origin, dir, range);
-  const Eigen::Vector3d e = p + dir * back_len;
   ++rays;
 
-  // Amanatides-Woo traversal of the voxels from s to e, in voxel units. Everything the loop
+  // Amanatides-Woo traversal of the voxels from a to b, in voxel units. Everything the loop
   // carries is a scalar (per-axis arrays indexed by the step axis would live on the stack);
   // the block is looked up only when the ray crosses into the next one.
-  const Eigen::Vector3d a = s * inv_vs_, b = e * inv_vs_, d = b - a;
+  Eigen::Vector3d a, b;
+  bandEnds(p, origin, dir, range, back_len, &a, &b);
+  const Eigen::Vector3d d = b - a;
   const VoxelIndex first = a.array().floor().cast<std::int64_t>();
   const VoxelIndex last = b.array().floor().cast<std::int64_t>();
   const double inf = std::numeric_limits<double>::infinity();
@@ -353,33 +357,6 @@ void analyseNeighbourhoods(const SpatialHashGrid& grid, std::size_t first, std::
 
 // Clouds of at least this many merged points are worth more than one thread.
 constexpr std::size_t kParallelFrom = 20000;
-
-// Runs part(t) for t in [0, parts): part 0 on this thread, the others on their own. Nothing may
-// escape a part before every thread is joined: each part keeps its exception, the first one
-// is rethrown afterwards (as one thread doing all parts would throw it).
-template <typename Part>
-void runParts(std::size_t parts, Part&& part) {
-  std::vector<std::exception_ptr> errors(parts);
-  auto guarded = [&](std::size_t t) {
-    try {
-      part(t);
-    } catch (...) {
-      errors[t] = std::current_exception();
-    }
-  };
-  std::vector<std::thread> pool;
-  for (std::size_t t = 1; t < parts; ++t) {
-    try {
-      pool.emplace_back(guarded, t);
-    } catch (...) {  // no thread to be had: do it here
-      guarded(t);
-    }
-  }
-  guarded(0);
-  for (auto& th : pool) th.join();
-  for (const auto& e : errors)
-    if (e) std::rethrow_exception(e);
-}
 
 }  // namespace
 

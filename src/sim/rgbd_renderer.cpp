@@ -1,3 +1,4 @@
+#include <fruit_shape_completion/parallel_parts.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 
 #include <embree3/rtcore.h>
@@ -7,7 +8,6 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
-#include <thread>
 
 namespace fruit_shape_completion {
 namespace sim {
@@ -134,11 +134,7 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
       }
     }
   };
-  const int t = std::max(1, threads);
-  std::vector<std::thread> pool;
-  for (int i = 1; i < t; ++i) pool.emplace_back(work, i);
-  work(0);
-  for (auto& th : pool) th.join();
+  runParts(static_cast<std::size_t>(std::max(1, threads)), [&](std::size_t i) { work(static_cast<int>(i)); });
   return frame;
 }
 
