@@ -3,11 +3,12 @@
 // equal to the query radius a query looks up the (at most 27) cells its box overlaps; cheaper
 // to build than a k-d tree and exact for the radius searches of clustering, normals and the
 // missing-surface test. Points are stored cell by cell, so a query reads contiguous memory.
-// For a neighbourhood pass over all points, forEachCell() shares the 27 lookups among all
-// points of a cell.
+// For a neighbourhood pass over all points, forEachCell() hands each cell its neighbour cells
+// found by walking the sorted cell list (no lookups), shared by all points of the cell.
 #include <fruit_shape_completion/flat_hash_map.h>
 #include <fruit_shape_completion/types.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -30,7 +31,7 @@ class SpatialHashGrid {
 
   double cellSize() const { return cell_; }
 
-  // The occupied cells in grid order; cell c holds the stored points [begin, end).
+  // The occupied cells in (x, y, z) order; cell c holds the stored points [begin, end).
   struct Cell {
     std::int64_t x, y, z;
     int begin, end;
@@ -65,36 +66,39 @@ class SpatialHashGrid {
 
 template <typename Visit>
 void SpatialHashGrid::forEachCell(std::size_t first, std::size_t last, Visit&& visit) const {
-  // near[column][dz + 1]: the range of cell (x + dx, y + dy, z + dz), column = 3 (dx + 1) + dy + 1;
-  // {0, 0} when empty. Cells come in key order, so the next cell is often the one above in z:
-  // its 27 neighbours then share 18 with this one's and only 9 are looked up.
-  std::pair<int, int> near[9][3];
-  auto lookup = [this](std::int64_t x, std::int64_t y, std::int64_t z) {
-    const std::pair<int, int>* r = cells_.find(packKey(x, y, z));
-    return r != nullptr ? *r : std::make_pair(0, 0);
+  // Cells come in (x, y, z) order, so in each of the 9 neighbour columns (x + dx, y + dy) the
+  // cells the next cell wants lie at or after those this one wanted: one cursor per column walks
+  // the cell list forward, in memory order, instead of 9 to 27 hash lookups per cell.
+  const std::size_t count = cell_list_.size();
+  last = last < count ? last : count;
+  if (first >= last) return;
+  auto before = [](const Cell& c, std::int64_t x, std::int64_t y, std::int64_t z) {
+    return c.x != x ? c.x < x : (c.y != y ? c.y < y : c.z < z);
   };
+  std::size_t cursor[9];
+  const Cell& start = cell_list_[first];
+  for (int col = 0; col < 9; ++col) {
+    const std::int64_t x = start.x + col / 3 - 1, y = start.y + col % 3 - 1, z = start.z - 1;
+    cursor[col] = static_cast<std::size_t>(
+        std::partition_point(cell_list_.begin(), cell_list_.end(), [&](const Cell& c) { return before(c, x, y, z); }) -
+        cell_list_.begin());
+  }
   std::pair<int, int> ranges[27];
-  const Cell* prev = nullptr;
-  for (std::size_t c = first; c < last && c < cell_list_.size(); ++c) {
+  for (std::size_t c = first; c < last; ++c) {
     const Cell& cell = cell_list_[c];
-    const bool above = prev != nullptr && prev->x == cell.x && prev->y == cell.y && prev->z + 1 == cell.z;
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy) {
-        std::pair<int, int>* col = near[3 * (dx + 1) + dy + 1];
-        if (above) {
-          col[0] = col[1];
-          col[1] = col[2];
-          col[2] = lookup(cell.x + dx, cell.y + dy, cell.z + 1);
-        } else {
-          for (int dz = -1; dz <= 1; ++dz) col[dz + 1] = lookup(cell.x + dx, cell.y + dy, cell.z + dz);
-        }
-      }
     int n = 0;
-    for (const auto& col : near)
-      for (const auto& r : col)
-        if (r.second > r.first) ranges[n++] = r;
+    for (int col = 0; col < 9; ++col) {  // column (dx, dy) = (col / 3 - 1, col % 3 - 1), dz ascending
+      const std::int64_t x = cell.x + col / 3 - 1, y = cell.y + col % 3 - 1, z = cell.z - 1;
+      std::size_t k = cursor[col];
+      while (k < count && before(cell_list_[k], x, y, z)) ++k;
+      cursor[col] = k;
+      for (; k < count; ++k) {
+        const Cell& o = cell_list_[k];
+        if (o.x != x || o.y != y || o.z > z + 2) break;
+        ranges[n++] = std::make_pair(o.begin, o.end);
+      }
+    }
     visit(cell, ranges, n);
-    prev = &cell;
   }
 }
 

@@ -13,27 +13,39 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
   std::vector<int> cell_of(points.size(), -1);
   std::vector<std::uint64_t> keys;
   std::vector<int> counts;
+  std::vector<std::pair<int, int>*> slots;  // each cell's value in cells_ (no rehash after this loop)
+  std::uint64_t last_key = FlatHashMap<std::pair<int, int>>::kEmpty;
+  int last_cell = -1;
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Point& p = points[i];
     if (!p.allFinite()) continue;
     const std::uint64_t key = packKey(cellOf(p.x()), cellOf(p.y()), cellOf(p.z()));
-    const auto ins = cells_.insert(key);
-    if (ins.second) {
-      ins.first->first = static_cast<int>(keys.size());
-      keys.push_back(key);
-      counts.push_back(0);
+    if (key != last_key) {  // neighbouring points (scan order) often share a cell
+      const auto ins = cells_.insert(key);
+      if (ins.second) {
+        ins.first->first = static_cast<int>(keys.size());
+        keys.push_back(key);
+        counts.push_back(0);
+      }
+      last_key = key;
+      last_cell = ins.first->first;
     }
-    cell_of[i] = ins.first->first;
-    ++counts[static_cast<std::size_t>(ins.first->first)];
+    cell_of[i] = last_cell;
+    ++counts[static_cast<std::size_t>(last_cell)];
   }
-  std::vector<int> order(keys.size());
-  for (std::size_t c = 0; c < order.size(); ++c) order[c] = static_cast<int>(c);
-  std::sort(order.begin(), order.end(), [&keys](int a, int b) { return keys[a] < keys[b]; });
+  slots.reserve(keys.size());
+  for (std::uint64_t key : keys) slots.push_back(cells_.find(key));
+  // In (x, y, z) order, negative coordinates first (forEachCell relies on it): flipping the top
+  // bit of each 21-bit field makes the packed keys compare as the signed coordinates do.
+  constexpr std::uint64_t kSignBits = (1ull << 62) | (1ull << 41) | (1ull << 20);
+  std::vector<std::pair<std::uint64_t, int>> order(keys.size());
+  for (std::size_t c = 0; c < order.size(); ++c) order[c] = {keys[c] ^ kSignBits, static_cast<int>(c)};
+  std::sort(order.begin(), order.end());
   std::vector<int> begin(keys.size());
   int total = 0;
-  for (int c : order) {
-    begin[static_cast<std::size_t>(c)] = total;
-    total += counts[static_cast<std::size_t>(c)];
+  for (const auto& o : order) {
+    begin[static_cast<std::size_t>(o.second)] = total;
+    total += counts[static_cast<std::size_t>(o.second)];
   }
   sorted_.resize(static_cast<std::size_t>(total));
   index_.resize(static_cast<std::size_t>(total));
@@ -45,9 +57,10 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
     sorted_[static_cast<std::size_t>(k)] = points[i];
   }
   cell_list_.reserve(keys.size());
-  for (int c : order) {
-    const int b = begin[static_cast<std::size_t>(c)], e = b + counts[static_cast<std::size_t>(c)];
-    *cells_.find(keys[static_cast<std::size_t>(c)]) = std::make_pair(b, e);
+  for (const auto& o : order) {
+    const std::size_t c = static_cast<std::size_t>(o.second);
+    const int b = begin[c], e = b + counts[c];
+    *slots[c] = std::make_pair(b, e);
     const Point& p = sorted_[static_cast<std::size_t>(b)];
     cell_list_.push_back({cellOf(p.x()), cellOf(p.y()), cellOf(p.z()), b, e});
   }

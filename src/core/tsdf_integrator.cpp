@@ -1,8 +1,8 @@
+#include <fruit_shape_completion/neighbourhood_statistics.h>
 #include <fruit_shape_completion/parallel_parts.h>
 #include <fruit_shape_completion/spatial_hash_grid.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -221,140 +221,6 @@ void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
   if (queued_ >= kQueueFlush) flush();
 }
 
-// The neighbourhood pass over the merged end points, for the grid cells [first, last): the
-// mean distance to the k nearest neighbours within `radius` (outlier statistics; k = 0: not
-// wanted) and the surface normal (with_normals; NaN where the neighbourhood is too small or
-// not a surface).
-//
-// Cell by cell: the 27 neighbour cells are looked up once per cell and copied, as floats
-// relative to the cell's first point, into flat arrays that every point of the cell then scans
-// in vectorisable loops. One eigen-decomposition per cell gives the cell's normal; each point
-// refines it by two steps of inverse iteration on its own neighbourhood's covariance (the
-// adjugate stands in for the inverse: the scale does not matter), which converges fast on a
-// surface, whose smallest eigenvalue is far below the others, and costs a fraction of a
-// solver call per point. Read-only over the grid, one output slot per point: thread-safe for
-// disjoint cell ranges.
-void analyseNeighbourhoods(const SpatialHashGrid& grid, std::size_t first, std::size_t last, double radius,
-                           int k, bool with_normals, std::vector<double>& knn,
-                           std::vector<Eigen::Vector3d>& normals) {
-  std::vector<float> cx, cy, cz, dist, near;
-  std::vector<int> sel;
-  const float r2 = static_cast<float>(radius * radius);
-  grid.forEachCell(first, last, [&](const SpatialHashGrid::Cell& cell, const std::pair<int, int>* ranges, int nr) {
-    const Point ref = grid.storedPoint(cell.begin);
-    cx.clear();
-    cy.clear();
-    cz.clear();
-    for (int r = 0; r < nr; ++r)
-      for (int j = ranges[r].first; j < ranges[r].second; ++j) {
-        const Point q = grid.storedPoint(j) - ref;
-        cx.push_back(static_cast<float>(q.x()));
-        cy.push_back(static_cast<float>(q.y()));
-        cz.push_back(static_cast<float>(q.z()));
-      }
-    const std::size_t nc = cx.size();
-    dist.resize(nc);
-    near.resize(nc);
-    sel.resize(nc + 1);
-    std::size_t n_in = 0;
-
-    // Distances from (px, py, pz) to all candidates (a loop that vectorises), then the moments
-    // about that place of the candidates within the radius, which are picked out without a
-    // branch per candidate (most fail, and the branch would mispredict often).
-    struct Moments {
-      double n, sx, sy, sz, xx, xy, xz, yy, yz, zz;
-      Eigen::Matrix3d covariance() const {
-        const Eigen::Vector3d s(sx, sy, sz);
-        Eigen::Matrix3d c;
-        c << xx, xy, xz, xy, yy, yz, xz, yz, zz;
-        return c - s * s.transpose() / n;
-      }
-    };
-    auto moments = [&](float px, float py, float pz) {
-      const float* __restrict x = cx.data();
-      const float* __restrict y = cy.data();
-      const float* __restrict z = cz.data();
-      float* __restrict out = dist.data();
-      for (std::size_t j = 0; j < nc; ++j) {
-        const float dx = x[j] - px, dy = y[j] - py, dz = z[j] - pz;
-        out[j] = dx * dx + dy * dy + dz * dz;
-      }
-      n_in = 0;
-      for (std::size_t j = 0; j < nc; ++j) {
-        sel[n_in] = static_cast<int>(j);
-        n_in += out[j] <= r2 ? 1 : 0;
-      }
-      Moments m{static_cast<double>(n_in), 0, 0, 0, 0, 0, 0, 0, 0, 0};
-      for (std::size_t q = 0; q < n_in; ++q) {
-        const std::size_t j = static_cast<std::size_t>(sel[q]);
-        const double dx = x[j] - px, dy = y[j] - py, dz = z[j] - pz;
-        m.sx += dx;
-        m.sy += dy;
-        m.sz += dz;
-        m.xx += dx * dx;
-        m.xy += dx * dy;
-        m.xz += dx * dz;
-        m.yy += dy * dy;
-        m.yz += dy * dz;
-        m.zz += dz * dz;
-      }
-      return m;
-    };
-
-    // The cell's normal: the neighbourhood of the centroid of its points.
-    Eigen::Vector3d cell_normal = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-    if (with_normals) {
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (int j = cell.begin; j < cell.end; ++j) c += grid.storedPoint(j) - ref;
-      c /= cell.end - cell.begin;
-      const Moments m = moments(static_cast<float>(c.x()), static_cast<float>(c.y()), static_cast<float>(c.z()));
-      if (m.n >= 5) {
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-        es.computeDirect(m.covariance());
-        if (es.eigenvalues()(1) > 0.05 * es.eigenvalues()(2)) cell_normal = es.eigenvectors().col(0);
-      }
-    }
-
-    for (int j = cell.begin; j < cell.end; ++j) {
-      const Point p = grid.storedPoint(j) - ref;
-      const std::size_t i = static_cast<std::size_t>(grid.originalIndex(j));
-      const Moments m = moments(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
-      // m.n counts the point itself (distance 0, nothing added to the sums).
-      if (with_normals && m.n >= 5 && cell_normal.allFinite()) {
-        const Eigen::Matrix3d c = m.covariance();
-        Eigen::Matrix3d adj;  // adjugate of the symmetric c
-        adj(0, 0) = c(1, 1) * c(2, 2) - c(1, 2) * c(1, 2);
-        adj(1, 1) = c(0, 0) * c(2, 2) - c(0, 2) * c(0, 2);
-        adj(2, 2) = c(0, 0) * c(1, 1) - c(0, 1) * c(0, 1);
-        adj(0, 1) = adj(1, 0) = c(0, 2) * c(1, 2) - c(0, 1) * c(2, 2);
-        adj(0, 2) = adj(2, 0) = c(0, 1) * c(1, 2) - c(0, 2) * c(1, 1);
-        adj(1, 2) = adj(2, 1) = c(0, 1) * c(0, 2) - c(0, 0) * c(1, 2);
-        Eigen::Vector3d n = cell_normal;
-        for (int step = 0; step < 2; ++step) {
-          const Eigen::Vector3d next = adj * n;
-          const double len = next.norm();
-          if (!(len > 0.0) || !std::isfinite(len)) break;  // degenerate: keep what we have
-          n = next / len;
-        }
-        normals[i] = n;
-      }
-      if (k > 0) {  // the neighbours within the radius, less the point itself (one distance 0)
-        std::size_t n_near = 0;
-        bool self_seen = false;
-        for (std::size_t q = 0; q < n_in; ++q) {
-          const float d = dist[static_cast<std::size_t>(sel[q])];
-          if (!self_seen && d == 0.0f) {
-            self_seen = true;
-            continue;
-          }
-          near[n_near++] = d;
-        }
-        knn[i] = meanKnnDistance(near.data(), n_near, k, radius);
-      }
-    }
-  });
-}
-
 // Clouds of at least this many merged points are worth more than one thread.
 constexpr std::size_t kParallelFrom = 20000;
 
@@ -508,22 +374,15 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
 
   // One neighbourhood pass over the merged end points gives both the outlier statistics and
   // the surface normals (PCA) for the incidence-limited band behind the surface.
-  const double radius = params_.remove_outliers ? params_.outliers.search_radius : 2.5 * vs;
-  const bool analyse = params_.remove_outliers || params_.incidence_limited_back_band;
+  NeighbourhoodQuery query;
+  query.radius = params_.remove_outliers ? params_.outliers.search_radius : 2.5 * vs;
+  query.k = params_.remove_outliers ? params_.outliers.k : 0;
+  query.normals = params_.incidence_limited_back_band;
+  query.threads = ends.size() >= kParallelFrom ? params_.threads : 1;
   std::vector<double>& knn = ws->knn;
   std::vector<Eigen::Vector3d>& normals = ws->normals;
-  knn.assign(ends.size(), radius);
-  normals.assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
-  if (analyse) {
-    const SpatialHashGrid grid(ends, radius);
-    auto analyseCells = [&](std::size_t first, std::size_t last) {
-      analyseNeighbourhoods(grid, first, last, radius, params_.remove_outliers ? params_.outliers.k : 0,
-                            params_.incidence_limited_back_band, knn, normals);
-    };
-    const std::size_t cells = grid.cells().size();
-    const std::size_t parts = ends.size() >= kParallelFrom ? static_cast<std::size_t>(params_.threads) : 1;
-    runParts(parts, [&](std::size_t t) { analyseCells(cells * t / parts, cells * (t + 1) / parts); });
-  }
+  analyseNeighbourhoods(ends, query, &knn, &normals);
+  if (!query.normals) normals.assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
   const auto analysed_at = std::chrono::steady_clock::now();
   report.neighbourhood_seconds = std::chrono::duration<double>(analysed_at - merged_at).count();
   std::vector<char>& outlier = ws->outlier;

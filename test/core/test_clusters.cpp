@@ -1,10 +1,14 @@
 #include <fruit_shape_completion/euclidean_clustering.h>
 #include <fruit_shape_completion/fruit_center.h>
+#include <fruit_shape_completion/neighbourhood_statistics.h>
 #include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/statistical_outlier_filter.h>
 #include <fruit_shape_completion/surface_normals.h>
 #include <fruit_shape_completion/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <limits>
 
 using namespace fruit_shape_completion;
@@ -37,6 +41,89 @@ TEST(SpatialHashGrid, RadiusSearchMatchesBruteForce) {
         if ((pts[i] - p).norm() <= radius) brute.push_back(i);
       EXPECT_EQ(found, brute);
       EXPECT_EQ(grid.anyWithin(p, radius), !brute.empty());
+    }
+  }
+}
+
+// The integrator's one-pass neighbourhood statistics against a brute-force double computation:
+// the k-NN mean of every point (with exact duplicates, sparse stray points and a NaN), the
+// outlier flags that follow from it, and the normals against an eigen-decomposition of each
+// point's own neighbourhood.
+TEST(NeighbourhoodStatistics, MatchBruteForceOnANoisySphereWithStrays) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.001);
+  std::uniform_real_distribution<double> u(-0.08, 0.08);
+  PointList pts;
+  for (const Point& d : fibonacciSphere(3000)) pts.push_back(0.04 * d + Point(noise(rng), noise(rng), noise(rng)));
+  for (int i = 0; i < 40; ++i) pts.push_back(pts[static_cast<std::size_t>(i * 53)]);  // exact duplicates
+  for (int i = 0; i < 60; ++i) pts.emplace_back(u(rng), u(rng), 0.06 + std::abs(u(rng)));  // strays
+  pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
+
+  // At 1 cm a sphere point has ~45 neighbours, at 6 mm ~16: both ends of the k selection.
+  for (const double radius : {0.01, 0.006}) {
+    SCOPED_TRACE(radius);
+    NeighbourhoodQuery q;  // k 10, normals
+    q.radius = radius;
+    std::vector<double> knn;
+    std::vector<Eigen::Vector3d> normals;
+    analyseNeighbourhoods(pts, q, &knn, &normals);
+    ASSERT_EQ(knn.size(), pts.size());
+    ASSERT_EQ(normals.size(), pts.size());
+
+    int sparse = 0, compared = 0, close_normals = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (!pts[i].allFinite()) {
+        EXPECT_TRUE(std::isnan(knn[i]));  // as the stand-alone filter: no statistic, flagged
+        EXPECT_FALSE(normals[i].allFinite());
+        continue;
+      }
+      std::vector<double> d2;
+      PointList hood;
+      for (std::size_t j = 0; j < pts.size(); ++j) {
+        const double dd = (pts[j] - pts[i]).squaredNorm();
+        if (pts[j].allFinite() && dd <= q.radius * q.radius) {
+          hood.push_back(pts[j]);
+          if (j != i) d2.push_back(dd);
+        }
+      }
+      EXPECT_NEAR(knn[i], meanKnnDistance(d2, q.k, q.radius), 1e-7) << i;
+      if (hood.size() < 5) {
+        ++sparse;
+        EXPECT_FALSE(normals[i].allFinite()) << i;
+        continue;
+      }
+      if (!normals[i].allFinite()) continue;
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (const Point& h : hood) mean += h;
+      mean /= static_cast<double>(hood.size());
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      for (const Point& h : hood) cov += (h - mean) * (h - mean).transpose();
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+      EXPECT_NEAR(normals[i].norm(), 1.0, 1e-9);
+      ++compared;
+      if (std::abs(normals[i].dot(es.eigenvectors().col(0))) > std::cos(2.0 * M_PI / 180.0)) ++close_normals;
+    }
+    EXPECT_GT(sparse, 30);      // most strays have under 5 neighbours: no normal, k-NN mean = radius
+    EXPECT_GT(compared, 2900);  // the sphere's points all got a normal
+    EXPECT_GT(close_normals, 0.99 * compared);
+
+    // The outlier flags equal those of the stand-alone filter (its own neighbour search).
+    const std::vector<char> flags = flagStatisticalOutliers(knn, 2.0);
+    OutlierFilterParams of;
+    of.search_radius = radius;
+    EXPECT_EQ(flags, findStatisticalOutliers(pts, of));
+    int stray_flags = 0;
+    for (std::size_t i = 3040; i + 1 < pts.size(); ++i) stray_flags += flags[i];
+    EXPECT_GT(stray_flags, 30);
+
+    // Two threads split the cells and give the same values.
+    q.threads = 2;
+    std::vector<double> knn2;
+    std::vector<Eigen::Vector3d> normals2;
+    analyseNeighbourhoods(pts, q, &knn2, &normals2);
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (!std::isnan(knn[i])) EXPECT_EQ(knn[i], knn2[i]) << i;
+      if (normals[i].allFinite()) EXPECT_EQ(normals[i], normals2[i]) << i;
     }
   }
 }
