@@ -26,7 +26,5 @@ std::vector<char> flagStatisticalOutliers(const std::vector<double>& mean_knn_di
 // Mean distance to the k nearest of the given squared neighbour distances (`d2` is reordered),
 // or `fallback` if there are fewer than k.
 double meanKnnDistance(std::vector<double>& d2, int k, double fallback);
-// The same over the n squared distances at d2 (reordered), in float.
-double meanKnnDistance(float* d2, std::size_t n, int k, double fallback);
 
 }  // namespace fruit_shape_completion

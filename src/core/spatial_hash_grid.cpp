@@ -13,7 +13,6 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
   std::vector<int> cell_of(points.size(), -1);
   std::vector<std::uint64_t> keys;
   std::vector<int> counts;
-  std::vector<std::pair<int, int>*> slots;  // each cell's value in cells_ (no rehash after this loop)
   std::uint64_t last_key = FlatHashMap<std::pair<int, int>>::kEmpty;
   int last_cell = -1;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -33,8 +32,6 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
     cell_of[i] = last_cell;
     ++counts[static_cast<std::size_t>(last_cell)];
   }
-  slots.reserve(keys.size());
-  for (std::uint64_t key : keys) slots.push_back(cells_.find(key));
   // In (x, y, z) order, negative coordinates first (forEachCell relies on it): flipping the top
   // bit of each 21-bit field makes the packed keys compare as the signed coordinates do.
   constexpr std::uint64_t kSignBits = (1ull << 62) | (1ull << 41) | (1ull << 20);
@@ -60,7 +57,7 @@ SpatialHashGrid::SpatialHashGrid(const PointList& points, double cell_size)
   for (const auto& o : order) {
     const std::size_t c = static_cast<std::size_t>(o.second);
     const int b = begin[c], e = b + counts[c];
-    *slots[c] = std::make_pair(b, e);
+    *cells_.find(keys[c]) = std::make_pair(b, e);
     const Point& p = sorted_[static_cast<std::size_t>(b)];
     cell_list_.push_back({cellOf(p.x()), cellOf(p.y()), cellOf(p.z()), b, e});
   }

@@ -16,23 +16,12 @@ void OutlierFilterParams::validate() const {
     throw std::invalid_argument("outlier filter search_radius must be a finite value > 0");
 }
 
-namespace {
-template <typename T>
-double meanOfKSmallestRoots(T* d2, std::size_t n, int k, double fallback) {
-  if (n < static_cast<std::size_t>(k)) return fallback;
-  std::nth_element(d2, d2 + (k - 1), d2 + n);
+double meanKnnDistance(std::vector<double>& d2, int k, double fallback) {
+  if (d2.size() < static_cast<std::size_t>(k)) return fallback;
+  std::nth_element(d2.begin(), d2.begin() + (k - 1), d2.end());
   double m = 0.0;
   for (int j = 0; j < k; ++j) m += std::sqrt(d2[j]);
   return m / k;
-}
-}  // namespace
-
-double meanKnnDistance(std::vector<double>& d2, int k, double fallback) {
-  return meanOfKSmallestRoots(d2.data(), d2.size(), k, fallback);
-}
-
-double meanKnnDistance(float* d2, std::size_t n, int k, double fallback) {
-  return meanOfKSmallestRoots(d2, n, k, fallback);
 }
 
 std::vector<char> flagStatisticalOutliers(const std::vector<double>& mean_knn_distance, double std_mul) {

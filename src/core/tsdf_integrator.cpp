@@ -382,7 +382,6 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   std::vector<double>& knn = ws->knn;
   std::vector<Eigen::Vector3d>& normals = ws->normals;
   analyseNeighbourhoods(ends, query, &knn, &normals);
-  if (!query.normals) normals.assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
   const auto analysed_at = std::chrono::steady_clock::now();
   report.neighbourhood_seconds = std::chrono::duration<double>(analysed_at - merged_at).count();
   std::vector<char>& outlier = ws->outlier;
@@ -408,7 +407,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     // Behind the surface a grazing ray soon leaves a curved fruit again; the voxels it would
     // then mark as inside lie outside. Its band there is cut to tau * cos(incidence).
     ray->back_len = tau;
-    if (normals[i].allFinite()) ray->back_len = tau * std::max(0.25, std::abs(normals[i].dot(ray->dir)));
+    if (query.normals && normals[i].allFinite()) ray->back_len = tau * std::max(0.25, std::abs(normals[i].dot(ray->dir)));
     if (params_.weighting == TsdfIntegratorParams::Weighting::kInverseSquare)
       ray->weight /= ray->range * ray->range;
     return true;
