@@ -9,6 +9,8 @@
 
 namespace fruit_shape_completion {
 
+class SpatialHashGrid;
+
 struct NeighbourhoodQuery {
   double radius = 0.01;  // neighbours are the points within this distance [m]
   int k = 10;            // for the mean k-NN distance; 0: not wanted
@@ -20,11 +22,14 @@ struct NeighbourhoodQuery {
 // - knn[i]: mean distance from point i to its k nearest other points within the radius (as
 //   meanKnnDistance), or the radius if it has fewer than k there;
 // - normals[i]: unit surface normal (either sign), NaN where the neighbourhood holds fewer than
-//   5 points (the point included) or its grid cell's points do not lie on a surface.
+//   5 points (the point included) or does not span a surface (its second eigenvalue under
+//   5 % of the largest: a line).
 // Non-finite points get NaN for both (the outlier flags then mark them, as
 // findStatisticalOutliers does). Distances are taken in float relative to nearby
 // points: the statistic matches a double computation to ~1e-6 relative.
+// `grid`, if given, is where the pass builds its spatial grid: a caller that keeps it between
+// calls saves the page faults of fresh memory.
 void analyseNeighbourhoods(const PointList& points, const NeighbourhoodQuery& query, std::vector<double>* knn,
-                           std::vector<Eigen::Vector3d>* normals);
+                           std::vector<Eigen::Vector3d>* normals, SpatialHashGrid* grid = nullptr);
 
 }  // namespace fruit_shape_completion

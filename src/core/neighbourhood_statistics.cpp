@@ -9,6 +9,10 @@
 #include <cstring>
 #include <limits>
 
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
 namespace fruit_shape_completion {
 
 namespace {
@@ -27,6 +31,13 @@ inline Float4 load4(const float* p) {
 inline void store4(float* p, Float4 v) { std::memcpy(p, &v, sizeof v); }
 inline Float4 splat(float v) { return Float4{v, v, v, v}; }
 inline Float4 keepWhere(Float4 v, Int4 mask) { return reinterpret_cast<Float4>(reinterpret_cast<Int4>(v) & mask); }
+inline Float4 sqrt4(Float4 v) {
+#if defined(__SSE__)
+  return reinterpret_cast<Float4>(_mm_sqrt_ps(reinterpret_cast<__m128>(v)));
+#else
+  return Float4{std::sqrt(v[0]), std::sqrt(v[1]), std::sqrt(v[2]), std::sqrt(v[3])};
+#endif
+}
 inline double laneSum(Float4 v) {
   return static_cast<double>(v[0]) + static_cast<double>(v[1]) + static_cast<double>(v[2]) + static_cast<double>(v[3]);
 }
@@ -100,8 +111,7 @@ struct Candidates {
 
   // After momentsAbout() at a point of the cloud: the mean distance to its k nearest others
   // within the radius, or `fallback` if there are fewer. Its own distance 0 is among them, so
-  // the k + 1 smallest are wanted; found by repeated extraction from whichever end is shorter
-  // (typically ~15 neighbours for k = 10: four maxima out), without a sort's mispredictions.
+  // the k + 1 smallest are wanted.
   double meanNearest(int k, float r2, double fallback) {
     float* d = near.data();
     std::size_t n = 0;
@@ -111,6 +121,46 @@ struct Candidates {
     }
     const std::size_t want = static_cast<std::size_t>(k) + 1;
     if (n < want) return fallback;
+    return (n <= kRankLimit ? sumOfSmallestByRank(d, n, want) : sumOfSmallestByExtraction(d, n, want)) / k;
+  }
+
+  // Up to this many in-radius distances (~15-40 on a voxel-merged surface at the defaults) the
+  // rank count below wins; beyond it its n^2 compares would not.
+  static constexpr std::size_t kRankLimit = 96;
+
+  // Sum of the square roots of the `want` smallest of d[0, n) (d has room up to n rounded up to
+  // 4). Each value's rank (how many are smaller) is counted 4 values at a time, compares and
+  // adds without branches or a dependency chain; the values ranked below `want` are summed.
+  // Equal values share a rank, so a tie at the boundary may take in more than `want`: all the
+  // extra ones equal the largest taken, subtracted again.
+  static double sumOfSmallestByRank(float* d, std::size_t n, std::size_t want) {
+    const std::size_t padded = (n + 3) / 4 * 4;
+    for (std::size_t m = n; m < padded; ++m) d[m] = std::numeric_limits<float>::infinity();  // rank n
+    const std::int32_t w = static_cast<std::int32_t>(want);
+    const Int4 limit{-w, -w, -w, -w};
+    Float4 sum{}, largest{};
+    Int4 taken{};
+    for (std::size_t i = 0; i < padded; i += 4) {
+      const Float4 di = load4(d + i);
+      Int4 below{};  // minus the count of smaller values, per lane (a true compare is -1)
+      for (std::size_t j = 0; j < n; ++j) below += splat(d[j]) < di;
+      const Int4 in = below > limit;
+      const Float4 v = keepWhere(di, in);
+      sum += sqrt4(v);
+      taken += in;
+      largest = keepWhere(v, v > largest) + keepWhere(largest, v <= largest);
+    }
+    const std::size_t count = static_cast<std::size_t>(-(taken[0] + taken[1] + taken[2] + taken[3]));
+    double total = laneSum(sum);
+    if (count > want) {
+      const float top = std::max(std::max(largest[0], largest[1]), std::max(largest[2], largest[3]));
+      total -= static_cast<double>(count - want) * std::sqrt(static_cast<double>(top));
+    }
+    return total;
+  }
+
+  // The same by repeated extraction from whichever end is shorter, for large neighbourhoods.
+  static double sumOfSmallestByExtraction(float* d, std::size_t n, std::size_t want) {
     if (n - want < want) {
       for (; n > want; --n) {  // drop the largest
         std::size_t arg = 0;
@@ -137,16 +187,44 @@ struct Candidates {
     }
     double sum = 0.0;
     for (std::size_t j = 0; j < want; ++j) sum += std::sqrt(static_cast<double>(d[j]));
-    return sum / k;
+    return sum;
   }
 };
 
-// Cells [first, last) of the grid. One eigen-decomposition per cell gives the cell's normal;
-// each point refines it by two steps of inverse iteration on its own neighbourhood's covariance
-// (the adjugate stands in for the inverse: the scale does not matter), which converges fast on
-// a surface, whose smallest eigenvalue is far below the others, and costs a fraction of a
-// solver call. Read-only over the grid, one output slot per point: thread-safe for disjoint
-// cell ranges.
+// The surface normal of a neighbourhood with covariance c: the eigenvector of its smallest
+// eigenvalue, found by power iteration on the adjugate (whose eigenvalues are the products of
+// the other two: on a surface the normal's is far the largest), started from the adjugate's
+// largest column, already close to it. NaN unless the neighbourhood spans a surface: a line's
+// (second eigenvalue under 5 % of the largest) has no normal.
+Eigen::Vector3d surfaceNormal(const Eigen::Matrix3d& c) {
+  const Eigen::Vector3d none = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Matrix3d adj;  // adjugate of the symmetric c
+  adj(0, 0) = c(1, 1) * c(2, 2) - c(1, 2) * c(1, 2);
+  adj(1, 1) = c(0, 0) * c(2, 2) - c(0, 2) * c(0, 2);
+  adj(2, 2) = c(0, 0) * c(1, 1) - c(0, 1) * c(0, 1);
+  adj(0, 1) = adj(1, 0) = c(0, 2) * c(1, 2) - c(0, 1) * c(2, 2);
+  adj(0, 2) = adj(2, 0) = c(0, 1) * c(1, 2) - c(0, 2) * c(1, 1);
+  adj(1, 2) = adj(2, 1) = c(0, 1) * c(0, 2) - c(0, 0) * c(1, 2);
+  int col = 0;
+  if (adj(1, 1) > adj(col, col)) col = 1;
+  if (adj(2, 2) > adj(col, col)) col = 2;
+  // Two steps, normalised once at the end: the entries (products of two variances, ~1e-9 m^4
+  // at a 1 cm radius) shrink with each step but stay far above double's range.
+  Eigen::Vector3d n = adj * (adj * adj.col(col));
+  const double len = n.norm();
+  if (!(len > 0.0) || !std::isfinite(len)) return none;
+  n /= len;
+  // The other two eigenvalues, from the covariance within the tangent plane: its trace and its
+  // determinant (n' adj n = their product).
+  const double t = c.trace() - n.dot(c * n), d = n.dot(adj * n);
+  const double half_gap = std::sqrt(std::max(0.0, 0.25 * t * t - d));
+  const double second = 0.5 * t - half_gap, largest = 0.5 * t + half_gap;
+  return second > 0.05 * largest ? n : none;
+}
+
+// Cells [first, last) of the grid: the candidates of a cell (the points of it and its
+// neighbours) are gathered once for all its points. Read-only over the grid, one output slot
+// per point: thread-safe for disjoint cell ranges.
 void analyseCells(const SpatialHashGrid& grid, std::size_t first, std::size_t last, const NeighbourhoodQuery& q,
                   double* knn, Eigen::Vector3d* normals) {
   Candidates cand;
@@ -154,45 +232,13 @@ void analyseCells(const SpatialHashGrid& grid, std::size_t first, std::size_t la
   grid.forEachCell(first, last, [&](const SpatialHashGrid::Cell& cell, const std::pair<int, int>* ranges, int nr) {
     const Point ref = grid.storedPoint(cell.begin);
     cand.gather(grid, ref, ranges, nr);
-
-    Eigen::Vector3d cell_normal = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-    if (normals != nullptr) {  // from the neighbourhood of the centroid of the cell's points
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (int j = cell.begin; j < cell.end; ++j) c += grid.storedPoint(j) - ref;
-      c /= cell.end - cell.begin;
-      const Moments m = cand.momentsAbout(static_cast<float>(c.x()), static_cast<float>(c.y()),
-                                          static_cast<float>(c.z()), r2);
-      if (m.n >= 5) {
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-        es.computeDirect(m.covariance());
-        if (es.eigenvalues()(1) > 0.05 * es.eigenvalues()(2)) cell_normal = es.eigenvectors().col(0);
-      }
-    }
-
     for (int j = cell.begin; j < cell.end; ++j) {
       const Point p = grid.storedPoint(j) - ref;
       const std::size_t i = static_cast<std::size_t>(grid.originalIndex(j));
       // m.n counts the point itself (distance 0, nothing added to the sums).
       const Moments m = cand.momentsAbout(static_cast<float>(p.x()), static_cast<float>(p.y()),
                                           static_cast<float>(p.z()), r2);
-      if (normals != nullptr && m.n >= 5 && cell_normal.allFinite()) {
-        const Eigen::Matrix3d c = m.covariance();
-        Eigen::Matrix3d adj;  // adjugate of the symmetric c
-        adj(0, 0) = c(1, 1) * c(2, 2) - c(1, 2) * c(1, 2);
-        adj(1, 1) = c(0, 0) * c(2, 2) - c(0, 2) * c(0, 2);
-        adj(2, 2) = c(0, 0) * c(1, 1) - c(0, 1) * c(0, 1);
-        adj(0, 1) = adj(1, 0) = c(0, 2) * c(1, 2) - c(0, 1) * c(2, 2);
-        adj(0, 2) = adj(2, 0) = c(0, 1) * c(1, 2) - c(0, 2) * c(1, 1);
-        adj(1, 2) = adj(2, 1) = c(0, 1) * c(0, 2) - c(0, 0) * c(1, 2);
-        Eigen::Vector3d n = cell_normal;
-        for (int step = 0; step < 2; ++step) {
-          const Eigen::Vector3d next = adj * n;
-          const double len = next.norm();
-          if (!(len > 0.0) || !std::isfinite(len)) break;  // degenerate: keep what we have
-          n = next / len;
-        }
-        normals[i] = n;
-      }
+      if (normals != nullptr && m.n >= 5) normals[i] = surfaceNormal(m.covariance());
       if (knn != nullptr) knn[i] = cand.meanNearest(q.k, r2, q.radius);
     }
   });
@@ -201,7 +247,7 @@ void analyseCells(const SpatialHashGrid& grid, std::size_t first, std::size_t la
 }  // namespace
 
 void analyseNeighbourhoods(const PointList& points, const NeighbourhoodQuery& query, std::vector<double>* knn,
-                           std::vector<Eigen::Vector3d>* normals) {
+                           std::vector<Eigen::Vector3d>* normals, SpatialHashGrid* grid_scratch) {
   const bool want_knn = knn != nullptr && query.k > 0;
   const bool want_normals = normals != nullptr && query.normals;
   if (want_knn) {
@@ -213,7 +259,9 @@ void analyseNeighbourhoods(const PointList& points, const NeighbourhoodQuery& qu
     normals->assign(points.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
   if (!(want_knn || want_normals) || points.empty() || !(query.radius > 0.0) || !std::isfinite(query.radius))
     return;
-  const SpatialHashGrid grid(points, query.radius);
+  SpatialHashGrid own_grid;
+  SpatialHashGrid& grid = grid_scratch != nullptr ? *grid_scratch : own_grid;
+  grid.build(points, query.radius);
   const std::size_t cells = grid.cells().size();
   const std::size_t parts = static_cast<std::size_t>(std::max(1, query.threads));
   runParts(parts, [&](std::size_t t) {

@@ -239,6 +239,7 @@ struct TsdfIntegrator::Scratch {
   std::vector<Eigen::Vector3d> normals;
   std::vector<char> outlier;
   std::vector<int> ray_block;
+  SpatialHashGrid grid;  // the neighbourhood pass's
 };
 
 void TsdfIntegrator::releaseScratch() const {
@@ -381,7 +382,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   query.threads = ends.size() >= kParallelFrom ? params_.threads : 1;
   std::vector<double>& knn = ws->knn;
   std::vector<Eigen::Vector3d>& normals = ws->normals;
-  analyseNeighbourhoods(ends, query, &knn, &normals);
+  analyseNeighbourhoods(ends, query, &knn, &normals, &ws->grid);
   const auto analysed_at = std::chrono::steady_clock::now();
   report.neighbourhood_seconds = std::chrono::duration<double>(analysed_at - merged_at).count();
   std::vector<char>& outlier = ws->outlier;

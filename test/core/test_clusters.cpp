@@ -45,6 +45,70 @@ TEST(SpatialHashGrid, RadiusSearchMatchesBruteForce) {
   }
 }
 
+// forEachCell's promise (every point within the cell size of a cell's point lies in the
+// ranges it hands over) and radius search, both against brute force.
+void expectGridMatchesBruteForce(const SpatialHashGrid& grid, const PointList& pts, double cell) {
+  std::size_t stored = 0;
+  grid.forEachCell(0, grid.cells().size(), [&](const SpatialHashGrid::Cell& c, const std::pair<int, int>* ranges, int nr) {
+    for (int j = c.begin; j < c.end; ++j) {
+      ++stored;
+      const Point& p = grid.storedPoint(j);
+      EXPECT_EQ(pts[static_cast<std::size_t>(grid.originalIndex(j))], p);
+      std::vector<int> in_ranges, brute;
+      for (int r = 0; r < nr; ++r)
+        for (int k = ranges[r].first; k < ranges[r].second; ++k)
+          if ((grid.storedPoint(k) - p).norm() <= cell) in_ranges.push_back(grid.originalIndex(k));
+      for (int i = 0; i < static_cast<int>(pts.size()); ++i)
+        if (pts[static_cast<std::size_t>(i)].allFinite() && (pts[static_cast<std::size_t>(i)] - p).norm() <= cell)
+          brute.push_back(i);
+      std::sort(in_ranges.begin(), in_ranges.end());
+      EXPECT_EQ(in_ranges, brute);
+    }
+  });
+  std::size_t finite = 0;
+  for (const Point& p : pts) finite += p.allFinite() ? 1 : 0;
+  EXPECT_EQ(stored, finite);
+  std::vector<int> found;
+  for (std::size_t q = 0; q < pts.size(); q += 37) {
+    if (!pts[q].allFinite()) continue;
+    grid.radiusSearch(pts[q], cell, found);
+    std::sort(found.begin(), found.end());
+    std::vector<int> brute;
+    for (int i = 0; i < static_cast<int>(pts.size()); ++i)
+      if (pts[static_cast<std::size_t>(i)].allFinite() && (pts[static_cast<std::size_t>(i)] - pts[q]).norm() <= cell)
+        brute.push_back(i);
+    EXPECT_EQ(found, brute);
+  }
+}
+
+TEST(SpatialHashGrid, RebuiltInPlaceOverWideCloudsMatchesBruteForce) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-0.1, 0.1);
+  // Two clusters 700 m apart (a key of many bits: several radix passes, negative cells), far
+  // and non-finite points. The same grid object is then rebuilt over a smaller cloud.
+  PointList wide;
+  for (int i = 0; i < 1500; ++i) wide.emplace_back(u(rng), u(rng), u(rng));
+  for (int i = 0; i < 500; ++i) wide.emplace_back(-400.0 + u(rng), 300.0 + u(rng), -2.0 + u(rng));
+  wide.emplace_back(1e13, 0.0, 0.0);
+  wide.emplace_back(-1e300, 0.0, 0.0);
+  wide.emplace_back(std::numeric_limits<double>::infinity(), 0.0, 0.0);
+  SpatialHashGrid grid;
+  grid.build(wide, 0.02);
+  {
+    SCOPED_TRACE("wide");
+    expectGridMatchesBruteForce(grid, wide, 0.02);
+  }
+  PointList small(wide.begin(), wide.begin() + 700);
+  grid.build(small, 0.01);
+  {
+    SCOPED_TRACE("rebuilt");
+    expectGridMatchesBruteForce(grid, small, 0.01);
+  }
+  grid.build(PointList{Point(std::numeric_limits<double>::quiet_NaN(), 0, 0)}, 0.01);
+  EXPECT_TRUE(grid.cells().empty());
+  EXPECT_FALSE(grid.anyWithin(Point::Zero(), 1.0));
+}
+
 // The integrator's one-pass neighbourhood statistics against a brute-force double computation:
 // the k-NN mean of every point (with exact duplicates, sparse stray points and a NaN), the
 // outlier flags that follow from it, and the normals against an eigen-decomposition of each
