@@ -123,11 +123,14 @@ TEST(NeighbourhoodStatistics, MatchBruteForceOnANoisySphereWithStrays) {
   for (int i = 0; i < 60; ++i) pts.emplace_back(u(rng), u(rng), 0.06 + std::abs(u(rng)));  // strays
   pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
 
-  // At 1 cm a sphere point has ~45 neighbours, at 6 mm ~16: both ends of the k selection.
-  for (const double radius : {0.01, 0.006}) {
-    SCOPED_TRACE(radius);
-    NeighbourhoodQuery q;  // k 10, normals
+  // A sphere point has ~16 neighbours at 6 mm and ~45 at 1 cm (the rank count), ~105 at 1.5 cm
+  // and ~190 at 2 cm (over its limit: the extraction, from either end with k 60 and 10).
+  const std::pair<double, int> cases[] = {{0.01, 10}, {0.006, 10}, {0.02, 10}, {0.015, 60}};
+  for (const auto& [radius, k] : cases) {
+    SCOPED_TRACE(testing::Message() << "radius " << radius << " k " << k);
+    NeighbourhoodQuery q;  // normals
     q.radius = radius;
+    q.k = k;
     std::vector<double> knn;
     std::vector<Eigen::Vector3d> normals;
     analyseNeighbourhoods(pts, q, &knn, &normals);
@@ -175,6 +178,7 @@ TEST(NeighbourhoodStatistics, MatchBruteForceOnANoisySphereWithStrays) {
     const std::vector<char> flags = flagStatisticalOutliers(knn, 2.0);
     OutlierFilterParams of;
     of.search_radius = radius;
+    of.k = k;
     EXPECT_EQ(flags, findStatisticalOutliers(pts, of));
     int stray_flags = 0;
     for (std::size_t i = 3040; i + 1 < pts.size(); ++i) stray_flags += flags[i];
