@@ -327,6 +327,14 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   // First the voxel key of every point (kSkip: dropped), then the merge: a full frame's table
   // is far larger than the caches, so the slot of the point a few places ahead is prefetched.
   constexpr std::uint64_t kSkip = FlatHashMap<int>::kEmpty;
+  const double inv_vs = 1.0 / vs;
+  // floor() as an integer without a libm call (SSE2 has no rounding instruction), clamped far
+  // beyond the 21 bits per axis a key keeps, so that no conversion overflows.
+  auto floorToInt = [](double v) {
+    v = std::min(4.0e15, std::max(-4.0e15, v));
+    const std::int64_t c = static_cast<std::int64_t>(v);
+    return c - (static_cast<double>(c) > v ? 1 : 0);
+  };
   std::vector<std::uint64_t>& keys = ws->keys;
   keys.assign(points.size(), kSkip);
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -340,8 +348,8 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
       ++report.out_of_range;
       continue;
     }
-    const VoxelIndex v = map.voxelIndexOf(p);
-    keys[i] = SpatialHashGrid::packKey(v.x(), v.y(), v.z());
+    // The voxel key (only groups the points: a point on a voxel face may go either way).
+    keys[i] = SpatialHashGrid::packKey(floorToInt(p.x() * inv_vs), floorToInt(p.y() * inv_vs), floorToInt(p.z() * inv_vs));
   }
   FlatHashMap<int>& slot = ws->slot;
   slot.reset(points.size());  // never grows: at most one entry per point
