@@ -9,10 +9,10 @@ namespace {
 
 // Cell coordinate of v / cell, wrapped into 21 bits (packKey keeps 21 bits per axis, so cells
 // 2^21 apart share a key either way). No std::floor call, and no undefined conversion for
-// values beyond the int64 range.
+// values beyond the int64 range or NaN (a zero coordinate times an infinite inverse cell size).
 inline std::int32_t wrappedCell(double scaled) {
   constexpr double kClamp = 4.0e15;  // far beyond 2^21 cells, well inside int64
-  scaled = scaled < -kClamp ? -kClamp : (scaled > kClamp ? kClamp : scaled);
+  scaled = std::min(kClamp, std::max(-kClamp, scaled));  // NaN -> -kClamp
   std::int64_t c = static_cast<std::int64_t>(scaled);
   c -= static_cast<double>(c) > scaled ? 1 : 0;
   constexpr std::int64_t kHalf = std::int64_t(1) << 20;
