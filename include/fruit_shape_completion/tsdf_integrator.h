@@ -69,7 +69,7 @@ class TsdfIntegrator {
   IntegrationReport integrate(TsdfMap& map, const PointList& points,
                               const Eigen::Isometry3d& sensor_pose) const;
 
-  // Frees the scratch buffers kept for the next call: ~40 MB after a full VGA frame, a few MB
+  // Frees the scratch buffers kept for the next call: ~65 MB after a full VGA frame, a few MB
   // after fruit frames; clouds over 400 k points use buffers of their own, freed at once.
   void releaseScratch() const;
 

@@ -301,10 +301,10 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     return done();
   }
 
-  // Scratch buffers kept between calls: a full frame needs ~40 MB of them, and memory fresh
-  // from the OS costs a page fault per 4 KiB (~1.4 us each here: 10 ms a frame). Another
+  // Scratch buffers kept between calls: a full frame needs ~65 MB of them, and memory fresh
+  // from the OS costs a page fault per 4 KiB (~1.4 us each here: ~20 ms a frame). Another
   // thread's call meanwhile uses its own, and so does a cloud larger than ~1.3 VGA frames
-  // (up to max_points it would need ~250 MB, not worth keeping).
+  // (up to max_points it would need ~400 MB, not worth keeping).
   constexpr std::size_t kKeepScratchUpTo = 400000;
   std::unique_lock<std::mutex> scratch_lock(scratch_.mutex, std::defer_lock);
   if (points.size() <= kKeepScratchUpTo) scratch_lock.try_lock();
