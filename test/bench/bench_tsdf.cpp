@@ -1,11 +1,15 @@
 // TSDF map benchmarks. Run: scripts/run.sh bench --benchmark_filter=Tsdf --benchmark_format=json
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/neighbourhood_statistics.h>
+#include <fruit_shape_completion/spatial_hash_grid.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 
+#include <cmath>
 #include <memory>
 #include <random>
+#include <unordered_map>
 
 using namespace fruit_shape_completion;
 
@@ -35,6 +39,16 @@ PointList view(const AnalyticScene& scene, const Eigen::Vector3d& target, const 
   return renderDepth(scene, cam, 0.0015).points;  // ~0.25 mm noise at 0.4 m
 }
 
+// A full 640 x 480 frame: two fruit clusters and a back wall, 0.3-1.5 m.
+PointList fullFrame(PinholeCamera* cam) {
+  AnalyticScene scene = fruitCluster(Eigen::Vector3d(0.0, 0.5, 0.5), 6, 3);
+  const AnalyticScene far = fruitCluster(Eigen::Vector3d(0.1, 1.0, 0.5), 6, 4);
+  scene.shapes.insert(scene.shapes.end(), far.shapes.begin(), far.shapes.end());
+  scene.planes.push_back({Eigen::Vector3d(0, 1.5, 0), Eigen::Vector3d(0, -1, 0)});
+  *cam = PinholeCamera::lookingAt(Eigen::Vector3d(0, 0, 0.5), Eigen::Vector3d(0, 1, 0.5));
+  return renderDepth(scene, *cam, 0.0015).points;
+}
+
 }  // namespace
 
 // One masked fruit frame (only fruit pixels, 640 x 480, fruits at 0.3-0.5 m) into a map that
@@ -60,12 +74,8 @@ BENCHMARK(BM_TsdfIntegrateFruitFrame)->Unit(benchmark::kMillisecond);
 // arg: 0 into a fresh map (first touch of every block page is included), 1 into a map that
 // already holds this area (as every later frame of a run).
 static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
-  AnalyticScene scene = fruitCluster(Eigen::Vector3d(0.0, 0.5, 0.5), 6, 3);
-  const AnalyticScene far = fruitCluster(Eigen::Vector3d(0.1, 1.0, 0.5), 6, 4);
-  scene.shapes.insert(scene.shapes.end(), far.shapes.begin(), far.shapes.end());
-  scene.planes.push_back({Eigen::Vector3d(0, 1.5, 0), Eigen::Vector3d(0, -1, 0)});
-  const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(0, 0, 0.5), Eigen::Vector3d(0, 1, 0.5));
-  const PointList frame = renderDepth(scene, cam, 0.0015).points;
+  PinholeCamera cam;
+  const PointList frame = fullFrame(&cam);
   TsdfIntegratorParams params;
   params.remove_outliers = params.incidence_limited_back_band = state.range(0) != 0;
   params.threads = static_cast<int>(state.range(1));
@@ -108,6 +118,52 @@ BENCHMARK(BM_TsdfIntegrateFullFrame)
     ->Args({1, 1, 0})->Args({1, 1, 1})->Args({1, 2, 0})->Args({1, 2, 1})
     ->Args({0, 1, 0})->Args({0, 1, 1})->Args({0, 2, 0})->Args({0, 2, 1})
     ->Unit(benchmark::kMillisecond);
+
+// The integrator's neighbourhood pass alone (neighbourhood_statistics.h), on the full frame's
+// points merged per 4 mm voxel (283 k), at the defaults (1 cm, k 10), one thread, its grid
+// kept between calls as the integrator keeps it. Arg: 0 k-NN means and normals, 1 normals
+// only, 2 k-NN means only, 3 building the grid only.
+static void BM_NeighbourhoodPass(benchmark::State& state) {
+  PinholeCamera cam;
+  const PointList frame = fullFrame(&cam);
+  std::unordered_map<std::uint64_t, std::size_t> slot;
+  PointList sums;
+  std::vector<int> counts;
+  for (const Point& p : frame) {
+    const Eigen::Vector3d v = (p / 0.004).array().floor();
+    const auto ins = slot.emplace(SpatialHashGrid::packKey(static_cast<std::int64_t>(v.x()), static_cast<std::int64_t>(v.y()),
+                                                           static_cast<std::int64_t>(v.z())),
+                                  sums.size());
+    if (ins.second) {
+      sums.push_back(Point::Zero());
+      counts.push_back(0);
+    }
+    sums[ins.first->second] += p;
+    ++counts[ins.first->second];
+  }
+  PointList ends(sums.size());
+  for (std::size_t i = 0; i < ends.size(); ++i) ends[i] = sums[i] / counts[i];
+  const int mode = static_cast<int>(state.range(0));
+  NeighbourhoodQuery query;  // the integrator's defaults: 1 cm, k 10, normals
+  query.k = mode == 1 ? 0 : 10;
+  query.normals = mode != 2;
+  SpatialHashGrid grid;
+  std::vector<double> knn;
+  std::vector<Eigen::Vector3d> normals;
+  for (auto _ : state) {
+    if (mode == 3) {
+      grid.build(ends, query.radius);
+      benchmark::DoNotOptimize(grid.cells().data());
+    } else {
+      analyseNeighbourhoods(ends, query, &knn, &normals, &grid);
+      benchmark::DoNotOptimize(knn.data());
+      benchmark::DoNotOptimize(normals.data());
+    }
+  }
+  state.counters["points"] = static_cast<double>(ends.size());
+  state.counters["cells"] = static_cast<double>(grid.cells().size());
+}
+BENCHMARK(BM_NeighbourhoodPass)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);
 
 // Surface extraction from a map holding 50 fruits, each cluster of 5 seen from 6 directions.
 static void BM_TsdfExtractSurface(benchmark::State& state) {
