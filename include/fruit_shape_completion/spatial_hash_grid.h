@@ -45,9 +45,10 @@ class SpatialHashGrid {
   // Stored point k (points are stored cell by cell) and its index in the original list.
   const Point& storedPoint(int k) const { return sorted_[k]; }
   int originalIndex(int k) const { return index_[k]; }
-  // Calls visit(cell, ranges, n) for cells [first, last) of cells(), with the [begin, end)
-  // ranges of the n occupied cells among it and its 26 neighbours. Every point within the
-  // cell size of a point of the cell lies in those ranges.
+  // Calls visit(cell, ranges, n) for cells [first, last) of cells(), with the n [begin, end)
+  // ranges of stored points that make up the occupied cells among it and its 26 neighbours
+  // (at most 9: a column's cells are consecutive). Every point within the cell size of a point
+  // of the cell lies in those ranges.
   template <typename Visit>
   void forEachCell(std::size_t first, std::size_t last, Visit&& visit) const;
 
@@ -102,7 +103,11 @@ void SpatialHashGrid::forEachCell(std::size_t first, std::size_t last, Visit&& v
       for (; k < count; ++k) {
         const Cell& o = cell_list_[k];
         if (o.x != x || o.y != y || o.z > z + 2) break;
-        ranges[n++] = std::make_pair(o.begin, o.end);
+        // Cells next to each other in a column are next to each other in memory: one range.
+        if (n > 0 && ranges[n - 1].second == o.begin)
+          ranges[n - 1].second = o.end;
+        else
+          ranges[n++] = std::make_pair(o.begin, o.end);
       }
     }
     visit(cell, ranges, n);
