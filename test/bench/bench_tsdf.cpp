@@ -1,4 +1,4 @@
-// TSDF map benchmarks. Run: scripts/run.sh bench --benchmark_filter=Tsdf --benchmark_format=json
+// TSDF map benchmarks. Run: scripts/run.sh bench --benchmark_filter='Tsdf|Neighbourhood' --benchmark_format=json
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/analytic_depth_camera.h>
 #include <fruit_shape_completion/neighbourhood_statistics.h>
