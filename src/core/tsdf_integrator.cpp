@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <climits>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -240,7 +239,7 @@ struct TsdfIntegrator::Scratch {
   std::vector<Eigen::Vector3d> normals;
   std::vector<char> outlier;
   std::vector<int> ray_block;
-  std::vector<Eigen::Vector3i> ray_home;  // the 2-thread pass's block of each ray
+  std::vector<VoxelIndex> ray_home;  // the 2-thread pass's block of each ray
   SpatialHashGrid grid;  // the neighbourhood pass's
 };
 
@@ -441,14 +440,11 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     // Each voxel then sees its rays in the same order on every run, though not in the order
     // of the cloud (as with one thread): the map differs from that only by float rounding.
     const int nps = map.voxelsPerSide();
-    // First, in parallel (pure arithmetic), the block whose inside holds each ray's band: its
-    // origin in block units, or none for rays that cross block faces or have no ray.
-    std::vector<Eigen::Vector3i>& ray_home = ws->ray_home;
+    // First, in parallel (pure arithmetic), the origin of the block whose inside holds each
+    // ray's band, or none for rays that cross block faces or have no ray.
+    std::vector<VoxelIndex>& ray_home = ws->ray_home;
     ray_home.resize(ends.size());
-    int shift = 0;  // block origins are multiples of nps: for a power of two a shift divides exactly
-    while ((1 << shift) < nps) ++shift;
-    if ((1 << shift) != nps) shift = -1;
-    const Eigen::Vector3i kNone(INT32_MIN, 0, 0);
+    const VoxelIndex kNone = VoxelIndex::Constant(std::numeric_limits<std::int64_t>::min());
     runParts(parts, [&](std::size_t t) {
       Ray tr;
       for (std::size_t i = ends.size() * t / parts, e = ends.size() * (t + 1) / parts; i < e; ++i) {
@@ -460,8 +456,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
         const VoxelIndex lf = first - bo, ll = last - bo;
         // A voxel of margin: rounding may carry a traversal one voxel past `last`.
         if (lf.minCoeff() < 1 || ll.minCoeff() < 1 || lf.maxCoeff() > nps - 2 || ll.maxCoeff() > nps - 2) continue;
-        const VoxelIndex b = shift >= 0 ? VoxelIndex(bo.x() >> shift, bo.y() >> shift, bo.z() >> shift) : VoxelIndex(bo / nps);
-        if ((b.array().abs() < std::int64_t(1) << 30).all()) ray_home[i] = b.cast<int>();
+        ray_home[i] = bo;
       }
     });
     std::vector<int>& ray_block = ws->ray_block;  // index into `blocks`; -1: crossing or none
@@ -471,7 +466,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     std::vector<std::size_t> block_rays;
     FlatHashMap<int> block_ids(256);
     TsdfBlock* last_block = nullptr;
-    Eigen::Vector3i last_home = kNone;
+    VoxelIndex last_home = kNone;
     int last_id = -1;
     Ray r;
     for (std::size_t i = 0; i < ends.size(); ++i) {
@@ -481,7 +476,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
         ++block_rays[static_cast<std::size_t>(last_id)];
         continue;
       }
-      const VoxelIndex bo = ray_home[i].cast<std::int64_t>() * nps;
+      const VoxelIndex& bo = ray_home[i];
       TsdfBlock* block = map.blockForUpdate(bo);
       if (block == nullptr) continue;  // the serial pass counts what is dropped
       if (block != last_block) {
