@@ -81,12 +81,19 @@ struct TsdfBlock {
   // part of a block costs no time. With huge_page (a 64^3 block of 8-byte voxels is exactly
   // one 2 MiB page) the first touch faults the whole block in at once instead of page by page.
   std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter> voxels;
-  // Layout indices of the voxels with weight > 0. Ascending up to `sorted_count` (readers then
-  // walk the block in memory order); newly observed voxels are appended behind that until
-  // sortObserved() merges them in.
-  std::vector<std::uint32_t> observed;
-  std::size_t sorted_count = 0;
-  void sortObserved();
+  // One bit per voxel (layout index), set once it has weight > 0. A bit per update costs less
+  // than a list: no branch on the voxel's old weight, nothing to grow or sort when a view sees
+  // new space, and readers walk the observed voxels in memory order. 32 KiB for 64^3 voxels.
+  std::vector<std::uint64_t> observed_bits;
+  // fn(layout index) for each observed voxel, ascending.
+  template <typename Fn>
+  void forEachObserved(Fn&& fn) const {
+    for (std::size_t w = 0; w < observed_bits.size(); ++w)
+      for (std::uint64_t b = observed_bits[w]; b != 0; b &= b - 1)
+        fn(static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(__builtin_ctzll(b))));
+  }
+  std::size_t observedCount() const;
+  void markObserved(std::uint32_t idx) { observed_bits[idx >> 6] |= std::uint64_t(1) << (idx & 63); }
 
   // Call before the first access to voxel idx in a batch of updates. The first access to a
   // fresh page decides its cost: a read maps the shared zero page and the write after it
@@ -104,10 +111,10 @@ struct TsdfBlock {
   // One bit per kVoxelsPerPage voxels: set once any of them may have been written.
   std::vector<std::uint64_t> written_groups;
 
-  // Records the first observation of voxel `idx` (call before giving it weight).
+  // Folds one measurement (weight > 0) into voxel `idx`.
   void update(std::uint32_t idx, double sdf, double weight, double max_weight) {
     TsdfVoxel& v = voxels[idx];
-    if (v.weight <= 0.0f) observed.push_back(idx);
+    markObserved(idx);
     const double wsum = v.weight + weight;
     v.distance = static_cast<float>((v.distance * v.weight + sdf * weight) / wsum);
     v.weight = static_cast<float>(wsum < max_weight ? wsum : max_weight);

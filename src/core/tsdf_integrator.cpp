@@ -62,13 +62,8 @@ class BandCaster {
     *first = a.array().floor().cast<std::int64_t>();
     *last = b.array().floor().cast<std::int64_t>();
   }
-  // Applies what is queued and merges each touched block's new voxels into its sorted list.
-  void finish() {
-    flush();
-    std::sort(touched_.begin(), touched_.end());
-    touched_.erase(std::unique(touched_.begin(), touched_.end()), touched_.end());
-    for (TsdfBlock* b : touched_) b->sortObserved();
-  }
+  // Applies what is still queued.
+  void finish() { flush(); }
 
  private:
   struct QueuedUpdate {
@@ -96,16 +91,12 @@ class BandCaster {
     *b = (p + dir * back_len) * inv_vs_;
   }
   TsdfBlock* enterBlock(const VoxelIndex& voxel, VoxelIndex* block_origin) {
-    TsdfBlock* block;
     if (fixed_block_ != nullptr) {
       *block_origin = fixed_origin_;
-      block = fixed_block_;
-    } else {
-      *block_origin = map_.blockOriginOf(voxel);
-      block = map_.blockForUpdate(*block_origin);
+      return fixed_block_;
     }
-    if (block != nullptr && (touched_.empty() || touched_.back() != block)) touched_.push_back(block);
-    return block;
+    *block_origin = map_.blockOriginOf(voxel);
+    return map_.blockForUpdate(*block_origin);
   }
 
   TsdfMap& map_;
@@ -116,7 +107,6 @@ class BandCaster {
   const bool crop_;
   std::vector<QueuedUpdate> queue_;
   std::size_t queued_ = 0;
-  std::vector<TsdfBlock*> touched_;
   TsdfBlock* fixed_block_ = nullptr;  // castWithin()
   VoxelIndex fixed_origin_;
 };

@@ -139,27 +139,13 @@ TsdfBlock::TsdfBlock(const VoxelIndex& o, int n, bool huge_page)
     : origin(o),
       voxel_count(static_cast<std::uint32_t>(n) * n * n),
       voxels(allocateVoxels(voxel_count, huge_page)),
+      observed_bits((static_cast<std::size_t>(voxel_count) + 63) / 64, 0),
       written_groups(voxel_count / kVoxelsPerPage / 64 + 1, 0) {}
 
-void TsdfBlock::sortObserved() {
-  if (sorted_count == observed.size()) return;
-  const std::size_t fresh = observed.size() - sorted_count;
-  const std::size_t words = (static_cast<std::size_t>(voxel_count) + 63) / 64;
-  if (fresh * 16 < words) {  // a few new voxels: sort them and merge
-    const auto mid = observed.begin() + static_cast<std::ptrdiff_t>(sorted_count);
-    std::sort(mid, observed.end());
-    std::inplace_merge(observed.begin(), mid, observed.end());
-  } else {  // many (a view into a new area): a bitmask sorts them in linear time
-    thread_local std::vector<std::uint64_t> bits;
-    bits.assign(words, 0);
-    for (std::uint32_t idx : observed) bits[idx >> 6] |= std::uint64_t(1) << (idx & 63);
-    std::size_t n = 0;
-    for (std::size_t w = 0; w < words; ++w)
-      for (std::uint64_t b = bits[w]; b != 0; b &= b - 1)
-        observed[n++] = static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(__builtin_ctzll(b)));
-    observed.resize(n);  // n == size: every index is listed once
-  }
-  sorted_count = observed.size();
+std::size_t TsdfBlock::observedCount() const {
+  std::size_t n = 0;
+  for (std::uint64_t w : observed_bits) n += static_cast<std::size_t>(__builtin_popcountll(w));
+  return n;
 }
 
 VoxelIndex TsdfMap::blockOriginOf(const VoxelIndex& v) const {
@@ -223,14 +209,14 @@ bool TsdfMap::setVoxel(const VoxelIndex& v, const TsdfVoxel& value) {
   const VoxelIndex l = v - origin;
   const std::uint32_t idx = layout_.index(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()));
   block->touchForWrite(idx);
-  if (block->voxels[idx].weight <= 0.0f) block->observed.push_back(idx);
   block->voxels[idx] = value;
+  if (value.weight > 0.0f) block->markObserved(idx);
   return true;
 }
 
 std::size_t TsdfMap::observedVoxelCount() const {
   std::size_t n = 0;
-  for (const auto& kv : blocks_) n += kv.second->observed.size();
+  for (const auto& kv : blocks_) n += kv.second->observedCount();
   return n;
 }
 
@@ -238,7 +224,8 @@ std::size_t TsdfMap::memoryBytes() const {
   std::size_t bytes = sizeof(*this);
   for (const auto& kv : blocks_)
     bytes += sizeof(TsdfBlock) + blockVoxels() * sizeof(TsdfVoxel) +
-             kv.second->observed.capacity() * sizeof(std::uint32_t) + 4 * sizeof(void*);
+             kv.second->observed_bits.size() * sizeof(std::uint64_t) +
+             kv.second->written_groups.size() * sizeof(std::uint64_t) + 4 * sizeof(void*);
   return bytes;
 }
 
@@ -266,17 +253,17 @@ bool TsdfMap::save(const std::string& path, std::string* error) const {
   for (const auto& kv : blocks_) {
     const TsdfBlock& b = *kv.second;
     const std::int64_t origin[3] = {b.origin.x(), b.origin.y(), b.origin.z()};
-    const std::uint32_t n = b.observed.size();
+    const std::uint32_t n = static_cast<std::uint32_t>(b.observedCount());
     put(origin, sizeof(origin));
     put(&n, 4);
-    for (std::uint32_t idx : b.observed) {
+    b.forEachObserved([&](std::uint32_t idx) {
       // Files keep the x-fastest index, whatever the layout in memory.
       const Eigen::Vector3i l = layout_.coords(idx);
       const std::uint32_t file_idx = static_cast<std::uint32_t>(l.x()) + vps * (l.y() + vps * l.z());
       put(&file_idx, 4);
       put(&b.voxels[idx].distance, 4);
       put(&b.voxels[idx].weight, 4);
-    }
+    });
   }
   if (!out) {
     if (error) *error = path + ": write error";
@@ -331,7 +318,6 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
         if (!loaded.setVoxel(g, v)) return fail("voxel outside the crop box or block limit");
       }
     }
-    for (auto& kv : loaded.blocks_) kv.second->sortObserved();
     blocks_.swap(loaded.blocks_);
     params_ = p;
     layout_ = loaded.layout_;

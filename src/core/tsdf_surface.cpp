@@ -31,13 +31,9 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
   const int n = map.voxelsPerSide();
   map.forEachBlock([&](const TsdfBlock& block) {
     const BlockView view{map, block, n};
-    const std::size_t count = block.observed.size();
-    for (std::size_t k = 0; k < count; ++k) {
-      // The observed voxels are scattered over the block: fetch ahead to hide the misses.
-      if (k + 16 < count) __builtin_prefetch(&block.voxels[block.observed[k + 16]]);
-      const std::uint32_t idx = block.observed[k];
+    block.forEachObserved([&](std::uint32_t idx) {
       const TsdfVoxel& v = block.voxels[idx];
-      if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) continue;
+      if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) return;
       const Eigen::Vector3i l = map.layout().coords(idx);
       const int lx = l.x(), ly = l.y(), lz = l.z();
       Eigen::Vector3d c = map.voxelCenter(block.origin + VoxelIndex(lx, ly, lz));
@@ -59,7 +55,7 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
         if (ok && gn > 0.5 && gn < 2.0) c -= (v.distance / gn) * (g / gn);
       }
       out.push_back(c);
-    }
+    });
   });
   return out;
 }
@@ -74,9 +70,9 @@ TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
                                   {0, 7, 6, 4}, {0, 7, 4, 5}, {0, 7, 5, 1}};
   map.forEachBlock([&](const TsdfBlock& block) {
     const BlockView view{map, block, n};
-    for (std::uint32_t idx : block.observed) {
+    block.forEachObserved([&](std::uint32_t idx) {
       const TsdfVoxel& v0 = block.voxels[idx];
-      if (v0.weight < min_weight || std::abs(v0.distance) > skip) continue;
+      if (v0.weight < min_weight || std::abs(v0.distance) > skip) return;
       const Eigen::Vector3i l = map.layout().coords(idx);
       const int lx = l.x(), ly = l.y(), lz = l.z();
       double d[8];
@@ -93,7 +89,7 @@ TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
         (d[c] < 0 ? neg : pos) = true;
         p[c] = map.voxelCenter(block.origin + VoxelIndex(lx + cx, ly + cy, lz + cz));
       }
-      if (!ok || !pos || !neg) continue;
+      if (!ok || !pos || !neg) return;
       for (const auto& tet : kTets) {
         int inside[4], outside[4], ni = 0, no = 0;
         for (int k : tet) (d[k] < 0 ? inside[ni++] : outside[no++]) = k;
@@ -125,7 +121,7 @@ TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
           emit(q0, q2, q3);
         }
       }
-    }
+    });
   });
   return mesh;
 }

@@ -59,6 +59,21 @@ double rmsError(const PointList& pts, const Superellipsoid& truth) {
   return std::sqrt(sum / pts.size());
 }
 
+// The blocks' observed bits mark exactly the voxels that hold weight.
+void expectObservedExactlyWhereWeighted(const TsdfMap& map) {
+  std::size_t mismatches = 0, observed = 0;
+  map.forEachBlock([&](const TsdfBlock& block) {
+    std::vector<char> listed(block.voxel_count, 0);
+    block.forEachObserved([&](std::uint32_t idx) { listed[idx] = 1; });
+    for (std::uint32_t idx = 0; idx < block.voxel_count; ++idx) {
+      observed += listed[idx];
+      mismatches += (block.voxels[idx].weight > 0.0f) != (listed[idx] != 0);
+    }
+  });
+  EXPECT_EQ(mismatches, 0u);
+  EXPECT_EQ(observed, map.observedVoxelCount());
+}
+
 }  // namespace
 
 // 14 views from all around: the surface lies within a voxel of the truth, covers >= 95 % of it,
@@ -214,6 +229,7 @@ TEST(TsdfMap, SaveAndLoadRestoreTheMapAndRefuseBrokenFiles) {
   ASSERT_TRUE(loaded.load(path, &err)) << err;
   EXPECT_EQ(loaded.blockCount(), map.blockCount());
   EXPECT_EQ(loaded.observedVoxelCount(), map.observedVoxelCount());
+  expectObservedExactlyWhereWeighted(loaded);
   const PointList a = extractSurfacePoints(map), b = extractSurfacePoints(loaded);
   EXPECT_EQ(a.size(), b.size());
   EXPECT_LT(std::abs(rmsError(a, truth) - rmsError(b, truth)), 1e-9);
@@ -393,10 +409,10 @@ TEST(TsdfMap, ThreadedRayCastingKeepsTheCropBox) {
   EXPECT_EQ(ra.voxel_updates, rb.voxel_updates);
   EXPECT_EQ(a.observedVoxelCount(), b.observedVoxelCount());
   b.forEachBlock([&](const TsdfBlock& block) {
-    for (std::uint32_t idx : block.observed) {
+    block.forEachObserved([&](std::uint32_t idx) {
       const Eigen::Vector3d c = b.voxelCenter(block.origin + b.layout().coords(idx).cast<std::int64_t>());
       ASSERT_TRUE(b.insideCropBox(c)) << c.transpose();
-    }
+    });
   });
 }
 
@@ -425,15 +441,11 @@ TEST(TsdfMap, FullFrameOnTwoThreadsEqualsOneThread) {
   ASSERT_EQ(a.observedVoxelCount(), b.observedVoxelCount());
   std::size_t blocks = 0, compared = 0;
   double worst_distance = 0, worst_weight = 0;
-  b.forEachBlock([&](const TsdfBlock& block) {
-    for (std::size_t k = 1; k < block.observed.size(); ++k) ASSERT_LT(block.observed[k - 1], block.observed[k]);
-    EXPECT_EQ(block.sorted_count, block.observed.size());
-  });
+  expectObservedExactlyWhereWeighted(a);
+  expectObservedExactlyWhereWeighted(b);
   a.forEachBlock([&](const TsdfBlock& block) {
     ++blocks;
-    for (std::size_t k = 1; k < block.observed.size(); ++k) ASSERT_LT(block.observed[k - 1], block.observed[k]);
-    EXPECT_EQ(block.sorted_count, block.observed.size());
-    for (std::uint32_t idx : block.observed) {
+    block.forEachObserved([&](std::uint32_t idx) {
       const VoxelIndex v = block.origin + a.layout().coords(idx).cast<std::int64_t>();
       const TsdfVoxel& va = block.voxels[idx];
       const TsdfVoxel* vb = b.voxel(v);
@@ -441,7 +453,7 @@ TEST(TsdfMap, FullFrameOnTwoThreadsEqualsOneThread) {
       worst_distance = std::max(worst_distance, static_cast<double>(std::abs(va.distance - vb->distance)));
       worst_weight = std::max(worst_weight, std::abs(va.weight - vb->weight) / static_cast<double>(va.weight));
       ++compared;
-    }
+    });
   });
   EXPECT_GT(blocks, 4u);
   EXPECT_GT(compared, 1000000u);
