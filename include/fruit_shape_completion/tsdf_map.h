@@ -131,13 +131,21 @@ class TsdfMap {
   const VoxelLayout& layout() const { return layout_; }
 
   VoxelIndex voxelIndexOf(const Eigen::Vector3d& p) const;
-  Eigen::Vector3d voxelCenter(const VoxelIndex& v) const;
+  Eigen::Vector3d voxelCenter(const VoxelIndex& v) const {
+    return (v.cast<double>().array() + 0.5) * params_.voxel_size;
+  }
   bool insideCropBox(const Eigen::Vector3d& p) const;
 
   // The voxel at a global index, or nullptr if its block does not exist.
   const TsdfVoxel* voxel(const VoxelIndex& v) const;
   // The global index of the first voxel of the block holding voxel v.
-  VoxelIndex blockOriginOf(const VoxelIndex& v) const;
+  VoxelIndex blockOriginOf(const VoxelIndex& v) const {
+    if (block_shift_ >= 0) {  // floor to a multiple of a power of two: clear the low bits
+      const std::int64_t mask = ~((std::int64_t(1) << block_shift_) - 1);
+      return VoxelIndex(v.x() & mask, v.y() & mask, v.z() & mask);
+    }
+    return blockOriginByDivision(v);
+  }
   // The block with that origin, created if needed; nullptr if max_blocks or the crop box
   // (the block lies wholly outside it) forbid it.
   TsdfBlock* blockForUpdate(const VoxelIndex& block_origin);
@@ -163,6 +171,7 @@ class TsdfMap {
   bool load(const std::string& path, std::string* error);
 
  private:
+  VoxelIndex blockOriginByDivision(const VoxelIndex& v) const;
   std::uint64_t blockKeyOf(const VoxelIndex& block_origin) const;
   bool blockInRange(const VoxelIndex& block_origin) const;
 

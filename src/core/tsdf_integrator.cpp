@@ -96,7 +96,12 @@ class BandCaster {
       return fixed_block_;
     }
     *block_origin = map_.blockOriginOf(voxel);
-    return map_.blockForUpdate(*block_origin);
+    // Most rays start in the block the ray before started in: no call into the map.
+    if (last_block_ == nullptr || *block_origin != last_origin_) {
+      last_block_ = map_.blockForUpdate(*block_origin);
+      last_origin_ = *block_origin;
+    }
+    return last_block_;
   }
 
   TsdfMap& map_;
@@ -108,6 +113,8 @@ class BandCaster {
   std::vector<QueuedUpdate> queue_;
   std::size_t queued_ = 0;
   TsdfBlock* fixed_block_ = nullptr;  // castWithin()
+  TsdfBlock* last_block_ = nullptr;   // enterBlock()'s last answer, the block at last_origin_
+  VoxelIndex last_origin_ = VoxelIndex::Zero();
   VoxelIndex fixed_origin_;
 };
 
@@ -130,8 +137,9 @@ void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
       t_max = t_delta = inf;
     } else {
       const double boundary = static_cast<double>(first[k] + (step > 0 ? 1 : 0));
-      t_max = (boundary - a[k]) / d[k];
-      t_delta = std::abs(1.0 / d[k]);
+      const double inv = 1.0 / d[k];
+      t_max = (boundary - a[k]) * inv;
+      t_delta = std::abs(inv);
     }
   };
   int sx, sy, sz;

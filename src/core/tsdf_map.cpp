@@ -84,10 +84,6 @@ VoxelIndex TsdfMap::voxelIndexOf(const Eigen::Vector3d& p) const {
   return (p / params_.voxel_size).array().floor().cast<std::int64_t>();
 }
 
-Eigen::Vector3d TsdfMap::voxelCenter(const VoxelIndex& v) const {
-  return (v.cast<double>().array() + 0.5) * params_.voxel_size;
-}
-
 bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
   return !params_.use_crop_box ||
          ((p.array() >= params_.crop_min.array()).all() && (p.array() <= params_.crop_max.array()).all());
@@ -148,11 +144,7 @@ std::size_t TsdfBlock::observedCount() const {
   return n;
 }
 
-VoxelIndex TsdfMap::blockOriginOf(const VoxelIndex& v) const {
-  if (block_shift_ >= 0) {  // floor to a multiple of a power of two: clear the low bits
-    const std::int64_t mask = ~((std::int64_t(1) << block_shift_) - 1);
-    return VoxelIndex(v.x() & mask, v.y() & mask, v.z() & mask);
-  }
+VoxelIndex TsdfMap::blockOriginByDivision(const VoxelIndex& v) const {
   const std::int64_t n = params_.voxels_per_side;
   return VoxelIndex(floorDiv(v.x(), n) * n, floorDiv(v.y(), n) * n, floorDiv(v.z(), n) * n);
 }
