@@ -148,7 +148,12 @@ class TsdfMap {
   }
   // The block with that origin, created if needed; nullptr if max_blocks or the crop box
   // (the block lies wholly outside it) forbid it.
-  TsdfBlock* blockForUpdate(const VoxelIndex& block_origin);
+  TsdfBlock* blockForUpdate(const VoxelIndex& block_origin) {
+    // Rays touch the same block many times in a row: the last answer is kept (inline, so a
+    // hit costs a compare, not a call).
+    if (cached_block_ != nullptr && block_origin == cached_origin_) return cached_block_;
+    return findOrCreateBlock(block_origin);
+  }
   // Sets a voxel (used by load); false if its block cannot be created.
   bool setVoxel(const VoxelIndex& v, const TsdfVoxel& value);
 
@@ -172,6 +177,7 @@ class TsdfMap {
 
  private:
   VoxelIndex blockOriginByDivision(const VoxelIndex& v) const;
+  TsdfBlock* findOrCreateBlock(const VoxelIndex& block_origin);  // blockForUpdate() past its cache
   std::uint64_t blockKeyOf(const VoxelIndex& block_origin) const;
   bool blockInRange(const VoxelIndex& block_origin) const;
 
@@ -180,8 +186,8 @@ class TsdfMap {
   int block_shift_ = -1;  // log2(voxels_per_side) for powers of two (shifts, not divisions)
   std::unordered_map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;
   // One-entry cache for updates: rays touch the same block many times in a row.
-  std::uint64_t cached_key_ = ~0ull;
-  TsdfBlock* cached_block_ = nullptr;
+  VoxelIndex cached_origin_ = VoxelIndex::Zero();
+  TsdfBlock* cached_block_ = nullptr;  // the block at cached_origin_; nullptr: nothing kept
 };
 
 }  // namespace fruit_shape_completion

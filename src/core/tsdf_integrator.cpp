@@ -96,12 +96,7 @@ class BandCaster {
       return fixed_block_;
     }
     *block_origin = map_.blockOriginOf(voxel);
-    // Most rays start in the block the ray before started in: no call into the map.
-    if (last_block_ == nullptr || *block_origin != last_origin_) {
-      last_block_ = map_.blockForUpdate(*block_origin);
-      last_origin_ = *block_origin;
-    }
-    return last_block_;
+    return map_.blockForUpdate(*block_origin);
   }
 
   TsdfMap& map_;
@@ -113,8 +108,6 @@ class BandCaster {
   std::vector<QueuedUpdate> queue_;
   std::size_t queued_ = 0;
   TsdfBlock* fixed_block_ = nullptr;  // castWithin()
-  TsdfBlock* last_block_ = nullptr;   // enterBlock()'s last answer, the block at last_origin_
-  VoxelIndex last_origin_ = VoxelIndex::Zero();
   VoxelIndex fixed_origin_;
 };
 

@@ -172,10 +172,9 @@ bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
   return (origin.array().abs() <= limit).all();
 }
 
-TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
+TsdfBlock* TsdfMap::findOrCreateBlock(const VoxelIndex& origin) {
   if (!blockInRange(origin)) return nullptr;
   const std::uint64_t key = blockKeyOf(origin);
-  if (key == cached_key_) return cached_block_;
   auto it = blocks_.find(key);
   if (it == blocks_.end()) {
     if (static_cast<int>(blocks_.size()) >= params_.max_blocks) return nullptr;
@@ -188,7 +187,7 @@ TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
     }
     it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side, params_.huge_pages)).first;
   }
-  cached_key_ = key;
+  cached_origin_ = origin;
   cached_block_ = it->second.get();
   return cached_block_;
 }
@@ -223,7 +222,6 @@ std::size_t TsdfMap::memoryBytes() const {
 
 void TsdfMap::clear() {
   blocks_.clear();
-  cached_key_ = ~0ull;
   cached_block_ = nullptr;
 }
 
@@ -313,7 +311,6 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
     blocks_.swap(loaded.blocks_);
     params_ = p;
     layout_ = loaded.layout_;
-    cached_key_ = ~0ull;
     cached_block_ = nullptr;
     return true;
   } catch (const std::bad_alloc&) {
