@@ -34,8 +34,9 @@ struct TsdfIntegratorParams {
   OutlierFilterParams outliers;
   std::size_t max_points = 2000000;  // larger clouds are refused whole (6 VGA frames)
   // Threads for large clouds (>= 20 k merged points): the neighbourhood pass (outlier
-  // statistics, normals) and the ray casting (by block; the map then differs from one thread's
-  // only by float rounding). 1 inside the planner, which runs its own threads.
+  // statistics, normals) and the ray casting (the map cut into one slab per thread, each voxel
+  // updated by one of them in the cloud's order: the same map as one thread's, to the bit).
+  // 1 inside the planner, which runs its own threads.
   int threads = 1;
   void validate() const;  // throws std::invalid_argument
 };
@@ -50,6 +51,7 @@ struct IntegrationReport {
   std::size_t outliers = 0;      // merged points removed by the outlier filter
   std::size_t rays = 0;
   std::size_t voxel_updates = 0;
+  std::size_t ray_threads = 1;  // threads that cast the rays (slabs of the map, one each)
   double seconds = 0.0;  // all of it; the phases:
   double merge_seconds = 0.0;          // checks and merging the points per voxel
   double neighbourhood_seconds = 0.0;  // outlier statistics and normals (0 when both are off)

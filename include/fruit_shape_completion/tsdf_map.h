@@ -146,6 +146,11 @@ class TsdfMap {
     }
     return blockOriginByDivision(v);
   }
+  // The block holding voxel v, in block units (its origin / voxels_per_side).
+  VoxelIndex blockCoordsOf(const VoxelIndex& v) const {
+    if (block_shift_ >= 0) return VoxelIndex(v.x() >> block_shift_, v.y() >> block_shift_, v.z() >> block_shift_);
+    return blockOriginByDivision(v) / static_cast<std::int64_t>(params_.voxels_per_side);
+  }
   // The block with that origin, created if needed; nullptr if max_blocks or the crop box
   // (the block lies wholly outside it) forbid it.
   TsdfBlock* blockForUpdate(const VoxelIndex& block_origin) {
@@ -166,9 +171,11 @@ class TsdfMap {
   std::size_t memoryBytes() const;
   void clear();
 
+  // In the order of their keys, whatever the order they were made in (so maps built by one
+  // thread or several iterate alike).
   template <typename Fn>  // fn(const TsdfBlock&)
   void forEachBlock(Fn&& fn) const {
-    for (const auto& kv : blocks_) fn(*kv.second);
+    for (const auto& kb : ordered_) fn(*kb.second);
   }
 
   // Binary file: the observed voxels only. load() leaves the map unchanged on error.
@@ -185,6 +192,7 @@ class TsdfMap {
   VoxelLayout layout_;
   int block_shift_ = -1;  // log2(voxels_per_side) for powers of two (shifts, not divisions)
   std::unordered_map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;
+  std::vector<std::pair<std::uint64_t, TsdfBlock*>> ordered_;  // the same blocks, by key
   // One-entry cache for updates: rays touch the same block many times in a row.
   VoxelIndex cached_origin_ = VoxelIndex::Zero();
   TsdfBlock* cached_block_ = nullptr;  // the block at cached_origin_; nullptr: nothing kept

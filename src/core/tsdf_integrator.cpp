@@ -39,28 +39,23 @@ class BandCaster {
         crop_(map.params().use_crop_box),
         queue_(kQueueFlush + 1024) {}
 
-  std::size_t rays = 0, voxel_updates = 0, partly_dropped_rays = 0;
+  std::size_t voxel_updates = 0;
 
-  void cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
-            double range, double w_ray, double back_len);
-  // The same for a ray whose band lies inside `block` (bandVoxels() one voxel or more from its
-  // faces): the map's block table is not touched, so casters on disjoint blocks may run
-  // concurrently. Should rounding carry the traversal out of the block anyway, the ray ends.
-  void castWithin(TsdfBlock* block, const VoxelIndex& block_origin, const Eigen::Vector3d& p,
-                  const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range, double w_ray,
-                  double back_len) {
-    fixed_block_ = block;
-    fixed_origin_ = block_origin;
-    cast(p, origin, dir, range, w_ray, back_len);
-    fixed_block_ = nullptr;
+  // True if part of the ray's band was dropped (outside the crop box or the block limit).
+  bool cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range,
+            double w_ray, double back_len) {
+    return slab_axis_ < 0 ? walk<false>(p, origin, dir, range, w_ray, back_len)
+                          : walk<true>(p, origin, dir, range, w_ray, back_len);
   }
-  // The first and last voxel of a ray's band (what cast() traverses between).
-  void bandVoxels(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
-                  double range, double back_len, VoxelIndex* first, VoxelIndex* last) const {
-    Eigen::Vector3d a, b;
-    bandEnds(p, origin, dir, range, back_len, &a, &b);
-    *first = a.array().floor().cast<std::int64_t>();
-    *last = b.array().floor().cast<std::int64_t>();
+  // From now on only the blocks whose origin along `axis` lies in [lo, hi) (voxel units) are
+  // updated; the rest of each ray is walked but left alone (not counted as dropped). Blocks
+  // are then looked up and created under `table_mutex`, so casters on disjoint slabs may run
+  // concurrently.
+  void keepToSlab(int axis, std::int64_t lo, std::int64_t hi, std::mutex* table_mutex) {
+    slab_axis_ = axis;
+    slab_lo_ = lo;
+    slab_hi_ = hi;
+    table_mutex_ = table_mutex;
   }
   // Applies what is still queued.
   void finish() { flush(); }
@@ -74,6 +69,11 @@ class BandCaster {
   };
   static constexpr std::size_t kQueueFlush = 1024;
 
+  // kSlab: keepToSlab() is in force (one thread's pass compiles without its checks).
+  template <bool kSlab>
+  bool walk(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range,
+            double w_ray, double back_len);
+
   void flush() {
     const double max_weight = params_.max_weight;
     for (std::size_t k = 0; k < queued_; ++k) {
@@ -82,21 +82,29 @@ class BandCaster {
     }
     queued_ = 0;
   }
-  // The band's start and end in voxel units: one computation for cast() and bandVoxels(), so
-  // the parallel pass classifies a ray by exactly the voxels its traversal will visit.
+  // The band's start and end in voxel units.
   void bandEnds(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range,
                 double back_len, Eigen::Vector3d* a, Eigen::Vector3d* b) const {
     const Eigen::Vector3d s = params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau_, range));
     *a = s * inv_vs_;
     *b = (p + dir * back_len) * inv_vs_;
   }
-  TsdfBlock* enterBlock(const VoxelIndex& voxel, VoxelIndex* block_origin) {
-    if (fixed_block_ != nullptr) {
-      *block_origin = fixed_origin_;
-      return fixed_block_;
-    }
+  // The block holding `voxel` (its origin into *block_origin), or nullptr: refused by the map,
+  // or (*foreign) outside this caster's slab.
+  template <bool kSlab>
+  TsdfBlock* enterBlock(const VoxelIndex& voxel, VoxelIndex* block_origin, bool* foreign) {
     *block_origin = map_.blockOriginOf(voxel);
-    return map_.blockForUpdate(*block_origin);
+    if (!kSlab) return map_.blockForUpdate(*block_origin);
+    const std::int64_t c = (*block_origin)[slab_axis_];
+    *foreign = c < slab_lo_ || c >= slab_hi_;
+    if (*foreign) return nullptr;
+    if (!slab_cached_ || *block_origin != slab_cached_origin_) {
+      std::lock_guard<std::mutex> lock(*table_mutex_);
+      slab_cached_block_ = map_.blockForUpdate(*block_origin);
+      slab_cached_origin_ = *block_origin;
+      slab_cached_ = true;
+    }
+    return slab_cached_block_;
   }
 
   TsdfMap& map_;
@@ -107,14 +115,18 @@ class BandCaster {
   const bool crop_;
   std::vector<QueuedUpdate> queue_;
   std::size_t queued_ = 0;
-  TsdfBlock* fixed_block_ = nullptr;  // castWithin()
-  VoxelIndex fixed_origin_;
+  // keepToSlab(); slab_axis_ < 0: no slab, blocks come from blockForUpdate (and its cache).
+  int slab_axis_ = -1;
+  std::int64_t slab_lo_ = 0, slab_hi_ = 0;
+  std::mutex* table_mutex_ = nullptr;
+  bool slab_cached_ = false;  // the last block looked up in the slab
+  VoxelIndex slab_cached_origin_ = VoxelIndex::Zero();
+  TsdfBlock* slab_cached_block_ = nullptr;
 };
 
-void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+template <bool kSlab>
+bool BandCaster::walk(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                       double range, double w_ray, double back_len) {
-  ++rays;
-
   // Amanatides-Woo traversal of the voxels from a to b, in voxel units. Everything the loop
   // carries is a scalar (per-axis arrays indexed by the step axis would live on the stack);
   // the block is looked up only when the ray crosses into the next one.
@@ -141,7 +153,8 @@ void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
   setup(1, sy, ty, dty);
   setup(2, sz, tz, dtz);
   VoxelIndex block_origin;
-  TsdfBlock* block = enterBlock(first, &block_origin);
+  bool foreign = false;
+  TsdfBlock* block = enterBlock<kSlab>(first, &block_origin, &foreign);
   int lx = static_cast<int>(first.x() - block_origin.x());
   int ly = static_cast<int>(first.y() - block_origin.y());
   int lz = static_cast<int>(first.z() - block_origin.z());
@@ -163,8 +176,9 @@ void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
       double w = w_ray;
       if (drop_off && sdf < drop_start) w *= (tau_ + sdf) * drop_scale;
       if (w > 0.0) {
-        if (block == nullptr ||
-            (crop_ && !map_.insideCropBox(map_.voxelCenter(block_origin + VoxelIndex(lx, ly, lz))))) {
+        if (block == nullptr) {
+          dropped = dropped || !(kSlab && foreign);  // another caster's slab is not dropped
+        } else if (crop_ && !map_.insideCropBox(map_.voxelCenter(block_origin + VoxelIndex(lx, ly, lz)))) {
           dropped = true;
         } else {
           const std::uint32_t idx = layout_x_[lx] + layout_y_[ly] + layout_z_[lz];
@@ -197,9 +211,8 @@ void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
       l = &lz;
     }
     if (static_cast<unsigned>(*l) >= static_cast<unsigned>(nps_)) {
-      if (fixed_block_ != nullptr) break;  // castWithin: never another block
       const VoxelIndex voxel = block_origin + VoxelIndex(lx, ly, lz);
-      block = enterBlock(voxel, &block_origin);
+      block = enterBlock<kSlab>(voxel, &block_origin, &foreign);
       lx = static_cast<int>(voxel.x() - block_origin.x());
       ly = static_cast<int>(voxel.y() - block_origin.y());
       lz = static_cast<int>(voxel.z() - block_origin.z());
@@ -208,12 +221,112 @@ void BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
   const std::size_t added = static_cast<std::size_t>(out - (queue_.data() + queued_));
   queued_ += added;
   voxel_updates += added;
-  if (dropped) ++partly_dropped_rays;
   if (queued_ >= kQueueFlush) flush();
+  return dropped;
 }
 
 // Clouds of at least this many merged points are worth more than one thread.
 constexpr std::size_t kParallelFrom = 20000;
+
+// floor(v) as an integer without a libm call (SSE2 has no rounding instruction), clamped far
+// beyond the 2^21 voxels or blocks a side that map keys keep, so that no conversion overflows.
+inline std::int64_t floorToInt(double v) {
+  v = std::min(4.0e15, std::max(-4.0e15, v));
+  const std::int64_t c = static_cast<std::int64_t>(v);
+  return c - (static_cast<double>(c) > v ? 1 : 0);
+}
+
+// The blocks along one axis a ray's band may reach, from its end point coordinate x on that
+// axis: a band reaches at most tau from its end point, plus a voxel for rounding (`reach`).
+// Monotone in x, so lo <= floor(x * inv_block) <= hi.
+struct BandSpan {
+  std::int64_t lo, hi;
+  BandSpan(double x, double reach, double inv_block)
+      : lo(floorToInt((x - reach) * inv_block)), hi(floorToInt((x + reach) * inv_block)) {}
+};
+
+// How the parallel ray pass cuts the map: slabs [bounds[t], bounds[t + 1]) in block units
+// along `axis`, one per thread. A ray is cast by every slab its band may reach.
+struct SlabCut {
+  int axis = -1;  // -1: no cut worth having
+  std::vector<std::int64_t> bounds;
+  double new_blocks_bound = 0;  // blocks in the bounding box of all bands: at most this many are made
+};
+
+// Cuts at block faces along the axis where the busiest slab casts the fewest rays (a ray near
+// a cut counts in both slabs), judged on every 4th ray: the least such load is found by
+// bisection, each candidate checked by filling slabs greedily from one end.
+SlabCut chooseSlabs(const PointList& ends, const std::vector<char>& outlier, double reach, double inv_block,
+                    std::size_t parts) {
+  constexpr std::int64_t kMaxSpan = 4096;  // blocks along an axis worth a histogram
+  constexpr std::size_t kSample = 4;
+  SlabCut best;
+  Eigen::Vector3d lo_p = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi_p = -lo_p;
+  std::size_t rays = 0;
+  for (std::size_t i = 0; i < ends.size(); ++i)
+    if (!outlier[i]) {
+      lo_p = lo_p.cwiseMin(ends[i]);
+      hi_p = hi_p.cwiseMax(ends[i]);
+      rays += i % kSample == 0 ? 1 : 0;
+    }
+  if (rays == 0) return best;
+  std::int64_t mins[3], maxs[3];
+  best.new_blocks_bound = 1.0;
+  for (int axis = 0; axis < 3; ++axis) {
+    mins[axis] = BandSpan(lo_p[axis], reach, inv_block).lo;
+    maxs[axis] = BandSpan(hi_p[axis], reach, inv_block).hi;
+    best.new_blocks_bound *= static_cast<double>(maxs[axis] - mins[axis] + 1);
+  }
+  std::size_t best_load = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const std::int64_t mn = mins[axis], mx = maxs[axis];
+    const std::int64_t span = mx - mn + 1;
+    if (span < 2 || span > kMaxSpan) continue;
+    // lo_below[c]: rays whose span starts before column c; hi_below[c]: ends before it. The rays
+    // reaching into columns [s, e) are then lo_below[e] - hi_below[s].
+    std::vector<std::size_t> lo_below(static_cast<std::size_t>(span) + 1, 0), hi_below(lo_below.size(), 0);
+    for (std::size_t i = 0; i < ends.size(); i += kSample)
+      if (!outlier[i]) {
+        const BandSpan b(ends[i][axis], reach, inv_block);
+        ++lo_below[static_cast<std::size_t>(b.lo - mn) + 1];
+        ++hi_below[static_cast<std::size_t>(b.hi - mn) + 1];
+      }
+    for (std::size_t c = 1; c < lo_below.size(); ++c) {
+      lo_below[c] += lo_below[c - 1];
+      hi_below[c] += hi_below[c - 1];
+    }
+    const std::size_t columns = static_cast<std::size_t>(span);
+    auto load = [&](std::size_t s, std::size_t e) { return lo_below[e] - hi_below[s]; };
+    // The slab ends of a greedy fill with at most `limit` rays a slab (empty if it needs more
+    // than `parts` slabs or one column alone exceeds it).
+    auto fill = [&](std::size_t limit) {
+      std::vector<std::size_t> slab_ends;
+      for (std::size_t s = 0; s < columns;) {
+        std::size_t e = s + 1;
+        if (load(s, e) > limit || slab_ends.size() == parts) return std::vector<std::size_t>();
+        while (e < columns && load(s, e + 1) <= limit) ++e;
+        slab_ends.push_back(e);
+        s = e;
+      }
+      return slab_ends;
+    };
+    std::size_t lo = 1, hi = rays;  // fill(hi) always succeeds: one slab takes every ray
+    while (lo < hi) {
+      const std::size_t mid = lo + (hi - lo) / 2;
+      if (fill(mid).empty()) lo = mid + 1; else hi = mid;
+    }
+    const std::vector<std::size_t> slab_ends = fill(lo);
+    // Worth it only if the busiest slab is clearly less than all of the view.
+    if (slab_ends.size() < 2 || 4 * lo > 3 * rays || (best.axis >= 0 && lo >= best_load)) continue;
+    best.axis = axis;
+    best_load = lo;
+    best.bounds.assign(1, std::numeric_limits<std::int64_t>::min());  // the outer slabs reach to the end
+    for (std::size_t k = 0; k + 1 < slab_ends.size(); ++k)
+      best.bounds.push_back(mn + static_cast<std::int64_t>(slab_ends[k]));
+    best.bounds.push_back(std::numeric_limits<std::int64_t>::max());
+  }
+  return best;
+}
 
 }  // namespace
 
@@ -229,8 +342,6 @@ struct TsdfIntegrator::Scratch {
   std::vector<double> knn;
   std::vector<Eigen::Vector3d> normals;
   std::vector<char> outlier;
-  std::vector<int> ray_block;
-  std::vector<VoxelIndex> ray_home;  // the 2-thread pass's block of each ray
   SpatialHashGrid grid;  // the neighbourhood pass's
 };
 
@@ -318,13 +429,6 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   // is far larger than the caches, so the slot of the point a few places ahead is prefetched.
   constexpr std::uint64_t kSkip = FlatHashMap<int>::kEmpty;
   const double inv_vs = 1.0 / vs;
-  // floor() as an integer without a libm call (SSE2 has no rounding instruction), clamped far
-  // beyond the 21 bits per axis a key keeps, so that no conversion overflows.
-  auto floorToInt = [](double v) {
-    v = std::min(4.0e15, std::max(-4.0e15, v));
-    const std::int64_t c = static_cast<std::int64_t>(v);
-    return c - (static_cast<double>(c) > v ? 1 : 0);
-  };
   std::vector<std::uint64_t>& keys = ws->keys;
   keys.assign(points.size(), kSkip);
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -413,107 +517,73 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
       ray->weight /= ray->range * ray->range;
     return true;
   };
-  auto tally = [&](const BandCaster& c) {
-    report.rays += c.rays;
-    report.voxel_updates += c.voxel_updates;
-    report.outside_map += c.partly_dropped_rays;
-  };
   BandCaster caster(map, params_, tau);
   const std::size_t parts = static_cast<std::size_t>(params_.threads);
-  if (parts < 2 || ends.size() < kParallelFrom || params_.carve_free_space) {
-    Ray r;
-    for (std::size_t i = 0; i < ends.size(); ++i)
-      if (rayOf(i, &r)) caster.cast(ends[i], origin, r.dir, r.range, r.weight, r.back_len);
-  } else {
-    // In parallel: a ray whose band lies inside one block (~85 % of a full frame's: the band
-    // is ~9 of a block's 64 voxels) goes to the thread owning that block; blocks are dealt out
-    // by ray count, largest first. The rest, crossing block faces, follow on this thread.
-    // Each voxel then sees its rays in the same order on every run, though not in the order
-    // of the cloud (as with one thread): the map differs from that only by float rounding.
-    const int nps = map.voxelsPerSide();
-    // First, in parallel (pure arithmetic), the origin of the block whose inside holds each
-    // ray's band, or none for rays that cross block faces or have no ray.
-    std::vector<VoxelIndex>& ray_home = ws->ray_home;
-    ray_home.resize(ends.size());
-    const VoxelIndex kNone = VoxelIndex::Constant(std::numeric_limits<std::int64_t>::min());
-    runParts(parts, [&](std::size_t t) {
-      Ray tr;
-      for (std::size_t i = ends.size() * t / parts, e = ends.size() * (t + 1) / parts; i < e; ++i) {
-        ray_home[i] = kNone;
-        if (!rayOf(i, &tr)) continue;
-        VoxelIndex first, last;
-        caster.bandVoxels(ends[i], origin, tr.dir, tr.range, tr.back_len, &first, &last);
-        const VoxelIndex bo = map.blockOriginOf(first);
-        const VoxelIndex lf = first - bo, ll = last - bo;
-        // A voxel of margin: rounding may carry a traversal one voxel past `last`.
-        if (lf.minCoeff() < 1 || ll.minCoeff() < 1 || lf.maxCoeff() > nps - 2 || ll.maxCoeff() > nps - 2) continue;
-        ray_home[i] = bo;
-      }
-    });
-    std::vector<int>& ray_block = ws->ray_block;  // index into `blocks`; -1: crossing or none
-    ray_block.assign(ends.size(), -1);
-    std::vector<TsdfBlock*> blocks;
-    std::vector<VoxelIndex> block_origins;
-    std::vector<std::size_t> block_rays;
-    FlatHashMap<int> block_ids(256);
-    TsdfBlock* last_block = nullptr;
-    VoxelIndex last_home = kNone;
-    int last_id = -1;
-    Ray r;
-    for (std::size_t i = 0; i < ends.size(); ++i) {
-      if (ray_home[i] == kNone) continue;
-      if (ray_home[i] == last_home && last_block != nullptr) {
-        ray_block[i] = last_id;
-        ++block_rays[static_cast<std::size_t>(last_id)];
-        continue;
-      }
-      const VoxelIndex& bo = ray_home[i];
-      TsdfBlock* block = map.blockForUpdate(bo);
-      if (block == nullptr) continue;  // the serial pass counts what is dropped
-      if (block != last_block) {
-        const auto ins = block_ids.insert(reinterpret_cast<std::uintptr_t>(block));
-        if (ins.second) {
-          *ins.first = static_cast<int>(blocks.size());
-          blocks.push_back(block);
-          block_origins.push_back(bo);
-          block_rays.push_back(0);
+  bool serial = parts < 2 || ends.size() < kParallelFrom || params_.carve_free_space;
+  if (!serial) {
+    // In parallel: the map is cut at block faces into one slab per thread (chooseSlabs); each
+    // thread casts the rays that may reach into its slab and updates only the voxels there (a
+    // ray near a cut is walked by both). Every voxel thus sees its rays in the order of the
+    // cloud, as with one thread: the same map, bit for bit.
+    const double reach = tau + 1.5 * vs;
+    const double inv_block = 1.0 / (vs * map.voxelsPerSide());
+    const SlabCut cut = chooseSlabs(ends, outlier, reach, inv_block, parts);
+    // Blocks made at once by several threads come in another order than one thread would make
+    // them; that only matters if the map may reach max_blocks in this view. Then one thread.
+    serial = cut.axis < 0 || static_cast<double>(map.blockCount()) + cut.new_blocks_bound > map.params().max_blocks;
+    if (!serial) {
+      const int axis = cut.axis;
+      const std::int64_t nps = map.voxelsPerSide();
+      const std::size_t slabs = cut.bounds.size() - 1;
+      report.ray_threads = slabs;
+      std::mutex table_mutex;
+      std::vector<std::unique_ptr<BandCaster>> casters(slabs);
+      std::vector<std::vector<std::size_t>> dropped(slabs);
+      std::vector<std::size_t> rays(slabs, 0);
+      runParts(slabs, [&](std::size_t s) {
+        casters[s] = std::make_unique<BandCaster>(map, params_, tau);
+        BandCaster& c = *casters[s];
+        const std::int64_t lo = cut.bounds[s], hi = cut.bounds[s + 1];
+        c.keepToSlab(axis, s == 0 ? std::numeric_limits<std::int64_t>::min() : lo * nps,
+                     s + 1 == slabs ? std::numeric_limits<std::int64_t>::max() : hi * nps, &table_mutex);
+        Ray tr;
+        std::size_t home_rays = 0;  // kept here, not in rays[s]: threads writing one cache line stall
+        std::vector<std::size_t> partly_dropped;
+        for (std::size_t i = 0; i < ends.size(); ++i) {
+          if (outlier[i]) continue;
+          const double x = ends[i][axis];
+          const BandSpan span(x, reach, inv_block);
+          if (span.hi < lo || span.lo >= hi || !rayOf(i, &tr)) continue;
+          // The ray counts in the slab of its end point (one of those that cast it).
+          const std::int64_t home = floorToInt(x * inv_block);
+          home_rays += (home >= lo || s == 0) && (home < hi || s + 1 == slabs) ? 1 : 0;
+          if (c.cast(ends[i], origin, tr.dir, tr.range, tr.weight, tr.back_len)) partly_dropped.push_back(i);
         }
-        last_block = block;
-        last_id = *ins.first;
+        c.finish();
+        rays[s] = home_rays;
+        dropped[s].swap(partly_dropped);
+      });
+      // A ray across a cut may have been dropped in part on either side: counted once.
+      std::vector<std::size_t> all;
+      for (std::size_t s = 0; s < slabs; ++s) {
+        report.rays += rays[s];
+        report.voxel_updates += casters[s]->voxel_updates;
+        all.insert(all.end(), dropped[s].begin(), dropped[s].end());
       }
-      last_home = ray_home[i];
-      ray_block[i] = last_id;
-      ++block_rays[static_cast<std::size_t>(last_id)];
+      std::sort(all.begin(), all.end());
+      report.outside_map += static_cast<std::size_t>(std::unique(all.begin(), all.end()) - all.begin());
     }
-    std::vector<std::size_t> order(blocks.size()), load(parts, 0), owner(blocks.size());
-    for (std::size_t b = 0; b < order.size(); ++b) order[b] = b;
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return block_rays[a] != block_rays[b] ? block_rays[a] > block_rays[b] : a < b;
-    });
-    for (std::size_t b : order) {
-      const std::size_t t = static_cast<std::size_t>(std::min_element(load.begin(), load.end()) - load.begin());
-      owner[b] = t;
-      load[t] += block_rays[b];
-    }
-    std::vector<std::unique_ptr<BandCaster>> casters(parts);
-    runParts(parts, [&](std::size_t t) {
-      casters[t] = std::make_unique<BandCaster>(map, params_, tau);
-      BandCaster& c = *casters[t];
-      Ray tr;
-      for (std::size_t i = 0; i < ends.size(); ++i) {
-        const int b = ray_block[i];
-        if (b < 0 || owner[static_cast<std::size_t>(b)] != t || !rayOf(i, &tr)) continue;
-        c.castWithin(blocks[static_cast<std::size_t>(b)], block_origins[static_cast<std::size_t>(b)], ends[i], origin,
-                     tr.dir, tr.range, tr.weight, tr.back_len);
-      }
-      c.finish();
-    });
-    for (const auto& c : casters) tally(*c);
-    for (std::size_t i = 0; i < ends.size(); ++i)
-      if (ray_block[i] < 0 && rayOf(i, &r)) caster.cast(ends[i], origin, r.dir, r.range, r.weight, r.back_len);
   }
-  caster.finish();
-  tally(caster);
+  if (serial) {
+    Ray r;
+    for (std::size_t i = 0; i < ends.size(); ++i)
+      if (rayOf(i, &r)) {
+        ++report.rays;
+        if (caster.cast(ends[i], origin, r.dir, r.range, r.weight, r.back_len)) ++report.outside_map;
+      }
+    caster.finish();
+    report.voxel_updates += caster.voxel_updates;
+  }
 
   report.ray_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - analysed_at).count();
 

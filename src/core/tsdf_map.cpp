@@ -186,6 +186,8 @@ TsdfBlock* TsdfMap::findOrCreateBlock(const VoxelIndex& origin) {
         return nullptr;
     }
     it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side, params_.huge_pages)).first;
+    const std::pair<std::uint64_t, TsdfBlock*> entry(key, it->second.get());
+    ordered_.insert(std::lower_bound(ordered_.begin(), ordered_.end(), entry), entry);
   }
   cached_origin_ = origin;
   cached_block_ = it->second.get();
@@ -207,21 +209,22 @@ bool TsdfMap::setVoxel(const VoxelIndex& v, const TsdfVoxel& value) {
 
 std::size_t TsdfMap::observedVoxelCount() const {
   std::size_t n = 0;
-  for (const auto& kv : blocks_) n += kv.second->observedCount();
+  for (const auto& kb : ordered_) n += kb.second->observedCount();
   return n;
 }
 
 std::size_t TsdfMap::memoryBytes() const {
   std::size_t bytes = sizeof(*this);
-  for (const auto& kv : blocks_)
+  for (const auto& kb : ordered_)
     bytes += sizeof(TsdfBlock) + blockVoxels() * sizeof(TsdfVoxel) +
-             kv.second->observed_bits.size() * sizeof(std::uint64_t) +
-             kv.second->written_groups.size() * sizeof(std::uint64_t) + 4 * sizeof(void*);
+             kb.second->observed_bits.size() * sizeof(std::uint64_t) +
+             kb.second->written_groups.size() * sizeof(std::uint64_t) + 6 * sizeof(void*);
   return bytes;
 }
 
 void TsdfMap::clear() {
   blocks_.clear();
+  ordered_.clear();
   cached_block_ = nullptr;
 }
 
@@ -240,8 +243,8 @@ bool TsdfMap::save(const std::string& path, std::string* error) const {
   put(&params_.voxel_size, 8);
   put(&vps, 4);
   put(&count, 8);
-  for (const auto& kv : blocks_) {
-    const TsdfBlock& b = *kv.second;
+  for (const auto& kb : ordered_) {
+    const TsdfBlock& b = *kb.second;
     const std::int64_t origin[3] = {b.origin.x(), b.origin.y(), b.origin.z()};
     const std::uint32_t n = static_cast<std::uint32_t>(b.observedCount());
     put(origin, sizeof(origin));
@@ -309,6 +312,7 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
       }
     }
     blocks_.swap(loaded.blocks_);
+    ordered_.swap(loaded.ordered_);
     params_ = p;
     layout_ = loaded.layout_;
     cached_block_ = nullptr;
