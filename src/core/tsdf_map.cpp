@@ -185,6 +185,7 @@ TsdfBlock* TsdfMap::findOrCreateBlock(const VoxelIndex& origin) {
       if ((hi.array() < params_.crop_min.array()).any() || (lo.array() > params_.crop_max.array()).any())
         return nullptr;
     }
+    ordered_.reserve(ordered_.size() + 1);  // the insert below then cannot throw after the emplace
     it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side, params_.huge_pages)).first;
     const std::pair<std::uint64_t, TsdfBlock*> entry(key, it->second.get());
     ordered_.insert(std::lower_bound(ordered_.begin(), ordered_.end(), entry), entry);
@@ -315,6 +316,7 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
     ordered_.swap(loaded.ordered_);
     params_ = p;
     layout_ = loaded.layout_;
+    block_shift_ = loaded.block_shift_;  // the file's block side may differ from the map's
     cached_block_ = nullptr;
     return true;
   } catch (const std::bad_alloc&) {

@@ -59,7 +59,6 @@ double rmsError(const PointList& pts, const Superellipsoid& truth) {
   return std::sqrt(sum / pts.size());
 }
 
-// The blocks' observed bits mark exactly the voxels that hold weight.
 // The two maps hold the same blocks, in the same order, and the same voxels to the bit.
 void expectSameMap(const TsdfMap& a, const TsdfMap& b) {
   ASSERT_EQ(a.blockCount(), b.blockCount());
@@ -79,6 +78,7 @@ void expectSameMap(const TsdfMap& a, const TsdfMap& b) {
   EXPECT_EQ(differing, 0u);
 }
 
+// The blocks' observed bits mark exactly the voxels that hold weight.
 void expectObservedExactlyWhereWeighted(const TsdfMap& map) {
   std::size_t mismatches = 0, observed = 0;
   map.forEachBlock([&](const TsdfBlock& block) {
@@ -580,5 +580,23 @@ TEST(TsdfMap, BlockMemoryAndLayoutDoNotChangeTheMap) {
   ASSERT_NE(got, nullptr);
   EXPECT_EQ(got->weight, 2.0f);
   EXPECT_EQ(back.observedVoxelCount(), 1u);
+  // A file of another block side (a power of two and not) loads into a default map, which then
+  // finds and extends its voxels with that side.
+  for (int side : {16, 12}) {
+    TsdfMapParams mp;
+    mp.voxels_per_side = side;
+    TsdfMap other(mp);
+    ASSERT_TRUE(other.setVoxel(VoxelIndex(40, -20, 70), v));
+    ASSERT_TRUE(other.save(path, &err)) << err;
+    TsdfMap into;
+    ASSERT_TRUE(into.load(path, &err)) << err;
+    EXPECT_EQ(into.voxelsPerSide(), side);
+    const TsdfVoxel* found = into.voxel(VoxelIndex(40, -20, 70));
+    ASSERT_NE(found, nullptr) << side;
+    EXPECT_EQ(found->weight, 2.0f);
+    ASSERT_TRUE(into.setVoxel(VoxelIndex(41, -20, 70), v));
+    EXPECT_EQ(into.blockCount(), 1u) << side;  // the neighbour lies in the same block
+    EXPECT_EQ(into.observedVoxelCount(), 2u);
+  }
   std::remove(path.c_str());
 }
