@@ -146,11 +146,6 @@ class TsdfMap {
     }
     return blockOriginByDivision(v);
   }
-  // The block holding voxel v, in block units (its origin / voxels_per_side).
-  VoxelIndex blockCoordsOf(const VoxelIndex& v) const {
-    if (block_shift_ >= 0) return VoxelIndex(v.x() >> block_shift_, v.y() >> block_shift_, v.z() >> block_shift_);
-    return blockOriginByDivision(v) / static_cast<std::int64_t>(params_.voxels_per_side);
-  }
   // The block with that origin, created if needed; nullptr if max_blocks or the crop box
   // (the block lies wholly outside it) forbid it.
   TsdfBlock* blockForUpdate(const VoxelIndex& block_origin) {

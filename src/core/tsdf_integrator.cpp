@@ -517,7 +517,6 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
       ray->weight /= ray->range * ray->range;
     return true;
   };
-  BandCaster caster(map, params_, tau);
   const std::size_t parts = static_cast<std::size_t>(params_.threads);
   bool serial = parts < 2 || ends.size() < kParallelFrom || params_.carve_free_space;
   if (!serial) {
@@ -575,6 +574,7 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     }
   }
   if (serial) {
+    BandCaster caster(map, params_, tau);
     Ray r;
     for (std::size_t i = 0; i < ends.size(); ++i)
       if (rayOf(i, &r)) {
