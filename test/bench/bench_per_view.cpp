@@ -1,0 +1,107 @@
+// The whole per-view update as the plugin runs it: insert a masked fruit frame into the TSDF
+// map, extract the surface, cluster, fit incrementally, predict the missing surface, hand out
+// the extra targets. Run: scripts/run.sh bench --benchmark_filter=PerView --benchmark_format=json
+//
+// The view sequence is recorded once per process from a seeded planner episode on scenario 2
+// (../shared/data; the procedural glasshouse when it is absent): the masked fruit cloud and the
+// sensor pose of every view, with depth noise. Each iteration replays it into a fresh estimator.
+#include <benchmark/benchmark.h>
+#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+struct RecordedView {
+  PointList fruit;
+  Eigen::Isometry3d pose;
+};
+
+struct Recording {
+  std::string scene;
+  std::vector<RecordedView> views;
+};
+
+const Recording& recording() {
+  static const Recording rec = [] {
+    Recording r;
+    const char* env = std::getenv("FSC_SHARED_DATA");
+    const std::string file = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
+    sim::Scene scene;
+    std::string err;
+    r.scene = file;
+    if (!sim::loadSceneSpec(file, &scene, &err)) {
+      r.scene = "procedural";
+      sim::loadSceneSpec(r.scene, &scene, &err);
+    }
+    std::vector<int> triangle_fruit;
+    const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
+    planner::PlannerParams params;
+    params.duration = 120.0;
+    params.seed = 3;
+    const planner::SceneTruth truth = planner::makeSceneTruth(fruits, params.octree_resolution);
+    const sim::RgbdRenderer renderer(scene, triangle_fruit);
+    planner::ShapeEstimatorHost host;  // none: the sequence only records what the camera saw
+    planner::runEpisode(scene, renderer, truth, host, params,
+                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
+                            const sim::FrameClouds& clouds) {
+                          Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+                          pose.linear() = cam.rotation;
+                          pose.translation() = cam.position;
+                          r.views.push_back({clouds.fruit, pose});
+                          return true;
+                        });
+    return r;
+  }();
+  return rec;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
+  return v[k];
+}
+
+}  // namespace
+
+static void BM_PerViewUpdate(benchmark::State& state) {
+  const Recording& rec = recording();
+  if (rec.views.empty()) {
+    state.SkipWithError("the recorded episode has no views");
+    return;
+  }
+  std::vector<double> per_view_ms;
+  std::size_t fruits = 0, targets = 0;
+  const PointList none;
+  for (auto _ : state) {
+    planner::SuperellipsoidEstimator estimator;
+    for (const auto& v : rec.views) {
+      const auto t0 = std::chrono::steady_clock::now();
+      estimator.insertView({v.fruit, none, v.pose, 0.0});
+      estimator.update();
+      const PointList extra = estimator.extraTargets();
+      const auto t1 = std::chrono::steady_clock::now();
+      per_view_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+      targets = extra.size();
+    }
+    fruits = estimator.fruits().size();
+  }
+  state.counters["views"] = static_cast<double>(rec.views.size());
+  state.counters["median_ms"] = quantile(per_view_ms, 0.5);
+  state.counters["p95_ms"] = quantile(per_view_ms, 0.95);
+  state.counters["max_ms"] = *std::max_element(per_view_ms.begin(), per_view_ms.end());
+  state.counters["fruits"] = static_cast<double>(fruits);
+  state.counters["targets"] = static_cast<double>(targets);
+  state.SetLabel(rec.scene);
+}
+BENCHMARK(BM_PerViewUpdate)->Unit(benchmark::kMillisecond)->Iterations(3);
