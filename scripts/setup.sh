@@ -9,7 +9,7 @@ PACKAGES=(
   ros-base-dev pluginlib-dev librostest-dev python3-rostest ros-message-generation
   libroscpp-dev libstd-msgs-dev libsensor-msgs-dev libgeometry-msgs-dev libvisualization-msgs-dev
   libtf2-ros-dev libtf2-eigen-dev
-  libeigen3-dev libceres-dev liboctomap-dev
+  libeigen3-dev libceres-dev liboctomap-dev libpcl-dev libpcl-conversions-dev
   libassimp-dev libembree-dev libyaml-cpp-dev libpng-dev
   libgtest-dev libbenchmark-dev
   python3-numpy python3-matplotlib

@@ -1,5 +1,6 @@
 #pragma once
-// What the pipeline reports for one fruit (one cluster of the surface cloud).
+// One estimated fruit: what the pipeline reports for a cluster of the surface cloud, and what
+// shape estimators hand the planner (its evaluation reads center() and volume).
 #include <fruit_shape_completion/superellipsoid.h>
 
 #include <string>
@@ -25,6 +26,14 @@ struct FruitEstimate {
   PointList points;           // the observed points of this fruit (its cluster, or its part)
 
   Eigen::Vector3d center() const { return shape.t; }
+  // A fruit known only by its centre and volume (e.g. the planner's ROI cluster boxes).
+  static FruitEstimate ofBox(const Eigen::Vector3d& center, double volume) {
+    FruitEstimate f;
+    f.shape.t = center;
+    f.volume = volume;
+    f.accepted = true;
+    return f;
+  }
 };
 
 }  // namespace fruit_shape_completion

@@ -10,8 +10,6 @@
 #include <fruit_shape_completion/tsdf_map.h>
 
 #include <Eigen/Geometry>
-#include <memory>
-#include <mutex>
 #include <string>
 
 namespace fruit_shape_completion {
@@ -33,11 +31,6 @@ struct TsdfIntegratorParams {
   bool remove_outliers = true;    // statistical outlier removal of the (voxel-merged) cloud
   OutlierFilterParams outliers;
   std::size_t max_points = 2000000;  // larger clouds are refused whole (6 VGA frames)
-  // Threads for large clouds (>= 20 k merged points): the neighbourhood pass (outlier
-  // statistics, normals) and the ray casting (the map cut into one slab per thread, each voxel
-  // updated by one of them in the cloud's order: the same map as one thread's, to the bit).
-  // 1 inside the planner, which runs its own threads.
-  int threads = 1;
   void validate() const;  // throws std::invalid_argument
 };
 
@@ -51,7 +44,6 @@ struct IntegrationReport {
   std::size_t outliers = 0;      // merged points removed by the outlier filter
   std::size_t rays = 0;
   std::size_t voxel_updates = 0;
-  std::size_t ray_threads = 1;  // threads that cast the rays (slabs of the map, one each)
   double seconds = 0.0;  // all of it; the phases:
   double merge_seconds = 0.0;          // checks and merging the points per voxel
   double neighbourhood_seconds = 0.0;  // outlier statistics and normals (0 when both are off)
@@ -71,24 +63,11 @@ class TsdfIntegrator {
   IntegrationReport integrate(TsdfMap& map, const PointList& points,
                               const Eigen::Isometry3d& sensor_pose) const;
 
-  // Frees the scratch buffers kept for the next call: ~65 MB after a full VGA frame, a few MB
-  // after fruit frames; clouds over 400 k points use buffers of their own, freed at once.
-  void releaseScratch() const;
-
  private:
   IntegrationReport integrateImpl(TsdfMap& map, const PointList& points,
                                   const Eigen::Vector3d& origin, const Eigen::Isometry3d* pose) const;
 
   TsdfIntegratorParams params_;
-  struct Scratch;  // per-call buffers, kept between calls (fresh memory costs page faults)
-  struct ScratchSlot {  // one call at a time uses it; a copy starts empty
-    ScratchSlot() = default;
-    ScratchSlot(const ScratchSlot&) {}
-    ScratchSlot& operator=(const ScratchSlot&) { return *this; }
-    std::mutex mutex;
-    std::shared_ptr<Scratch> data;
-  };
-  mutable ScratchSlot scratch_;
 };
 
 }  // namespace fruit_shape_completion

@@ -1,6 +1,6 @@
 #include <fruit_shape_completion/fruit_center.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
-#include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/grid_cell.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -43,9 +43,7 @@ std::unordered_set<std::uint64_t> occupiedCells(const PointList& points) {
   std::unordered_set<std::uint64_t> cells;
   cells.reserve(points.size());
   for (const auto& p : points)
-    cells.insert(SpatialHashGrid::packKey(static_cast<std::int64_t>(std::floor(p.x() / kTrackCell)),
-                                          static_cast<std::int64_t>(std::floor(p.y() / kTrackCell)),
-                                          static_cast<std::int64_t>(std::floor(p.z() / kTrackCell))));
+    cells.insert(packCellKey(cellOf(p, 1.0 / kTrackCell)));
   return cells;
 }
 
@@ -114,10 +112,8 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
   est.iterations = fit.iterations;
   est.fit_seconds = fit.seconds;
   est.volume = fit.shape.volume();
-  if (est.accepted && params_.missing.samples > 0) {
-    const SpatialHashGrid grid(points, params_.missing.threshold);
-    est.missing_surface = predictMissingSurface(est.shape, grid, params_.missing);
-  }
+  if (est.accepted && params_.missing.samples > 0)
+    est.missing_surface = predictMissingSurface(est.shape, points, params_.missing);
   return est;
 }
 

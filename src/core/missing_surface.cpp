@@ -1,12 +1,25 @@
+#include "pcl_cloud.h"
+
 #include <fruit_shape_completion/missing_surface.h>
+
+#include <pcl/kdtree/kdtree_flann.h>
 
 namespace fruit_shape_completion {
 
-PointList predictMissingSurface(const Superellipsoid& shape, const SpatialHashGrid& observed,
+PointList predictMissingSurface(const Superellipsoid& shape, const PointList& observed,
                                 const MissingSurfaceParams& params) {
   PointList missing;
-  for (const auto& s : shape.sampleSurface(params.samples))
-    if (s.allFinite() && !observed.anyWithin(s, params.threshold)) missing.push_back(s);
+  const PclCloud::Ptr cloud = toPclCloud(observed);
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+  if (!cloud->empty()) tree.setInputCloud(cloud);
+  std::vector<int> nearest(1);
+  std::vector<float> d2(1);
+  const double t2 = params.threshold * params.threshold;
+  for (const auto& s : shape.sampleSurface(params.samples)) {
+    if (!s.allFinite()) continue;
+    const pcl::PointXYZ q(static_cast<float>(s.x()), static_cast<float>(s.y()), static_cast<float>(s.z()));
+    if (cloud->empty() || tree.nearestKSearch(q, 1, nearest, d2) < 1 || d2[0] > t2) missing.push_back(s);
+  }
   return missing;
 }
 

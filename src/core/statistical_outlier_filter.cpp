@@ -1,9 +1,8 @@
-#include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/neighbour_grid.h>
 #include <fruit_shape_completion/statistical_outlier_filter.h>
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <stdexcept>
 
 namespace fruit_shape_completion {
@@ -16,46 +15,39 @@ void OutlierFilterParams::validate() const {
     throw std::invalid_argument("outlier filter search_radius must be a finite value > 0");
 }
 
-double meanKnnDistance(std::vector<double>& d2, int k, double fallback) {
-  if (d2.size() < static_cast<std::size_t>(k)) return fallback;
-  std::nth_element(d2.begin(), d2.begin() + (k - 1), d2.end());
-  double m = 0.0;
-  for (int j = 0; j < k; ++j) m += std::sqrt(d2[j]);
-  return m / k;
-}
-
-std::vector<char> flagStatisticalOutliers(const std::vector<double>& mean_knn_distance, double std_mul) {
-  std::vector<char> outlier(mean_knn_distance.size(), 1);
+std::vector<char> findStatisticalOutliers(const PointList& points, const OutlierFilterParams& params) {
+  std::vector<char> outlier(points.size(), 1);
+  const NeighbourGrid grid(points, params.search_radius);
+  std::vector<double> mean_knn(points.size(), 0.0), d2;
   double sum = 0.0, sum2 = 0.0;
   std::size_t n = 0;
-  for (double m : mean_knn_distance)
-    if (std::isfinite(m)) {
-      sum += m;
-      sum2 += m * m;
-      ++n;
-    }
-  if (n == 0) return outlier;
-  const double mean = sum / n;
-  const double threshold = mean + std_mul * std::sqrt(std::max(0.0, sum2 / n - mean * mean));
-  for (std::size_t i = 0; i < mean_knn_distance.size(); ++i)
-    outlier[i] = !(mean_knn_distance[i] <= threshold);
-  return outlier;
-}
-
-std::vector<char> findStatisticalOutliers(const PointList& points, const OutlierFilterParams& params) {
-  const SpatialHashGrid grid(points, params.search_radius);
-  std::vector<double> mean_dist(points.size(), std::numeric_limits<double>::quiet_NaN());
-  std::vector<double> d2;
+  const std::size_t k = static_cast<std::size_t>(params.k);
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite()) continue;
     d2.clear();
-    grid.visitWithin(points[i], params.search_radius, [&](const Point& q, int j) {
-      if (static_cast<std::size_t>(j) != i) d2.push_back((q - points[i]).squaredNorm());
-      return true;
+    grid.forEachWithin(points[i], params.search_radius, [&](int j, double dd) {
+      if (static_cast<std::size_t>(j) != i) d2.push_back(dd);
     });
-    mean_dist[i] = meanKnnDistance(d2, params.k, params.search_radius);
+    double m = params.search_radius;
+    if (d2.size() >= k) {
+      std::nth_element(d2.begin(), d2.begin() + static_cast<long>(k - 1), d2.end());
+      m = 0.0;
+      for (std::size_t j = 0; j < k; ++j) m += std::sqrt(d2[j]);
+      m /= static_cast<double>(k);
+    }
+    mean_knn[i] = m;
+    sum += m;
+    sum2 += m * m;
+    ++n;
   }
-  return flagStatisticalOutliers(mean_dist, params.std_mul);
+  if (n < 2) return outlier;
+  // As PCL: the sample standard deviation.
+  const double mean = sum / static_cast<double>(n);
+  const double var = std::max(0.0, (sum2 - static_cast<double>(n) * mean * mean) / static_cast<double>(n - 1));
+  const double threshold = mean + params.std_mul * std::sqrt(var);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (points[i].allFinite()) outlier[i] = mean_knn[i] > threshold;
+  return outlier;
 }
 
 }  // namespace fruit_shape_completion

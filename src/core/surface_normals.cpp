@@ -1,4 +1,4 @@
-#include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/neighbour_grid.h>
 #include <fruit_shape_completion/surface_normals.h>
 
 #include <Eigen/Eigenvalues>
@@ -8,40 +8,40 @@
 
 namespace fruit_shape_completion {
 
-SurfaceNormals estimateNormals(const PointList& points, const NormalParams& params,
-                               const Eigen::Vector3d& inside) {
+// The PCA normal of pcl::NormalEstimation, over a NeighbourGrid (docs/benchmarks.md). That class
+// is not used as it is: it gives a normal to any neighbourhood of 3 points, a line included, and
+// the centre prior must not take the arbitrary normal of a line.
+SurfaceNormals estimateNormals(const PointList& points, const NormalParams& params, const Eigen::Vector3d& inside) {
   SurfaceNormals out;
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  out.normals.assign(points.size(), Eigen::Vector3d::Constant(nan));
+  out.normals.assign(points.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
   if (points.empty() || !(params.radius > 0.0)) return out;
-  const SpatialHashGrid grid(points, params.radius);
-  const size_t step =
-      params.max_points > 0 ? std::max<size_t>(1, (points.size() + params.max_points - 1) / params.max_points) : 1;
-  for (size_t i = 0; i < points.size(); i += step) {
+  const NeighbourGrid grid(points, params.radius);
+  const std::size_t n = points.size();
+  const std::size_t step =
+      params.max_points > 0 ? std::max<std::size_t>(1, (n + params.max_points - 1) / params.max_points) : 1;
+  for (std::size_t i = 0; i < n; i += step) {
     if (!points[i].allFinite()) continue;
-    // Moments relative to the query point (numerically safe), accumulated during the search.
+    // Moments relative to the query point (numerically safe).
     int count = 0;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-    grid.visitWithin(points[i], params.radius, [&](const Point& q, int) {
-      const Eigen::Vector3d d = q - points[i];
+    grid.forEachWithin(points[i], params.radius, [&](int j, double) {
+      const Eigen::Vector3d d = points[static_cast<std::size_t>(j)] - points[i];
       ++count;
       sum += d;
       outer.noalias() += d * d.transpose();
-      return true;
     });
     if (count < params.min_neighbours) continue;
     const Eigen::Vector3d mean = sum / count;
-    const Eigen::Matrix3d cov = outer - count * mean * mean.transpose();
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(cov);
+    es.computeDirect(outer - count * mean * mean.transpose());
     const Eigen::Vector3d ev = es.eigenvalues();  // ascending
     if (!(ev(2) > 0.0) || ev(1) < params.min_planarity * ev(2)) continue;
-    Eigen::Vector3d n = es.eigenvectors().col(0);
-    if (!n.allFinite() || n.norm() < 0.5) continue;
-    n.normalize();
-    if (n.dot(inside - points[i]) < 0.0) n = -n;
-    out.normals[i] = n;
+    Eigen::Vector3d normal = es.eigenvectors().col(0);
+    if (!normal.allFinite() || normal.norm() < 0.5) continue;
+    normal.normalize();
+    if (normal.dot(inside - points[i]) < 0.0) normal = -normal;
+    out.normals[i] = normal;
     ++out.valid;
   }
   return out;

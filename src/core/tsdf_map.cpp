@@ -1,18 +1,13 @@
-#include <fruit_shape_completion/spatial_hash_grid.h>
 #include <fruit_shape_completion/tsdf_map.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <new>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
-#ifdef __linux__
-#include <sys/mman.h>
-#endif
 
 namespace fruit_shape_completion {
 
@@ -37,106 +32,18 @@ void TsdfMapParams::validate() const {
     throw std::invalid_argument("tsdf crop box must have crop_min < crop_max on every axis");
 }
 
-VoxelLayout::VoxelLayout(int n) : n_(n), morton_(n > 0 && (n & (n - 1)) == 0), x_(n), y_(n), z_(n) {
-  for (int i = 0; i < n; ++i) {
-    if (morton_) {  // bit b of the coordinate goes to bit 3b (+1 for y, +2 for z)
-      std::uint32_t spread = 0;
-      for (int b = 0; (1 << b) < n; ++b) spread |= static_cast<std::uint32_t>((i >> b) & 1) << (3 * b);
-      x_[i] = spread;
-      y_[i] = spread << 1;
-      z_[i] = spread << 2;
-    } else {
-      x_[i] = static_cast<std::uint32_t>(i);
-      y_[i] = static_cast<std::uint32_t>(i * n);
-      z_[i] = static_cast<std::uint32_t>(i * n * n);
-    }
-  }
-}
-
-namespace {
-// Every third bit of x (bits 0, 3, 6, ...) packed into the low bits: up to 10 of them.
-int compactEveryThirdBit(std::uint32_t x) {
-  x &= 0x09249249u;
-  x = (x ^ (x >> 2)) & 0x030c30c3u;
-  x = (x ^ (x >> 4)) & 0x0300f00fu;
-  x = (x ^ (x >> 8)) & 0xff0000ffu;
-  x = (x ^ (x >> 16)) & 0x000003ffu;
-  return static_cast<int>(x);
-}
-}  // namespace
-
-Eigen::Vector3i VoxelLayout::coords(std::uint32_t idx) const {
-  if (!morton_) return Eigen::Vector3i(idx % n_, (idx / n_) % n_, idx / (n_ * n_));
-  return Eigen::Vector3i(compactEveryThirdBit(idx), compactEveryThirdBit(idx >> 1), compactEveryThirdBit(idx >> 2));
-}
-
-TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params), layout_(1) {
-  params_.validate();
-  layout_ = VoxelLayout(params_.voxels_per_side);
-  const int n = params_.voxels_per_side;
-  if ((n & (n - 1)) == 0) {
-    block_shift_ = 0;
-    while ((1 << block_shift_) < n) ++block_shift_;
-  }
-}
-
-VoxelIndex TsdfMap::voxelIndexOf(const Eigen::Vector3d& p) const {
-  return (p / params_.voxel_size).array().floor().cast<std::int64_t>();
-}
+TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params) { params_.validate(); }
 
 bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
   return !params_.use_crop_box ||
          ((p.array() >= params_.crop_min.array()).all() && (p.array() <= params_.crop_max.array()).all());
 }
 
-void VoxelArrayDeleter::operator()(TsdfVoxel* p) const {
-#ifdef __linux__
-  if (mapped_bytes != 0) {
-    munmap(p, mapped_bytes);
-    return;
-  }
-#endif
-  std::free(p);
-}
-
-namespace {
-// A zeroed array of `count` voxels: for 2 MiB or more on Linux, 2 MiB-aligned anonymous memory
-// (page-aligned, so each 8x8x8 Morton group is one page), advised as huge pages if asked; else
-// calloc.
-std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter> allocateVoxels(std::size_t count, bool huge_page) {
-  const std::size_t bytes = count * sizeof(TsdfVoxel);
-#ifdef __linux__
-  constexpr std::size_t kHuge = std::size_t(2) << 20;
-  if (bytes >= kHuge) {
-    const std::size_t len = (bytes + kHuge - 1) / kHuge * kHuge;
-    void* raw = mmap(nullptr, len + kHuge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (raw != MAP_FAILED) {
-      // Keep the 2 MiB-aligned part, give back the slack before and after it.
-      const auto base = reinterpret_cast<std::uintptr_t>(raw);
-      const std::uintptr_t aligned = (base + kHuge - 1) / kHuge * kHuge;
-      if (aligned > base) munmap(raw, aligned - base);
-      const std::uintptr_t tail = aligned + len, end = base + len + kHuge;
-      if (end > tail) munmap(reinterpret_cast<void*>(tail), end - tail);
-      if (huge_page) madvise(reinterpret_cast<void*>(aligned), len, MADV_HUGEPAGE);  // a hint; failing is harmless
-      return std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter>(reinterpret_cast<TsdfVoxel*>(aligned),
-                                                             VoxelArrayDeleter{len});
-    }
-  }
-#else
-  (void)huge_page;
-#endif
-  auto* p = static_cast<TsdfVoxel*>(std::calloc(count, sizeof(TsdfVoxel)));
-  if (p == nullptr) throw std::bad_alloc();
-  return std::unique_ptr<TsdfVoxel[], VoxelArrayDeleter>(p, VoxelArrayDeleter{0});
-}
-}  // namespace
-
-TsdfBlock::TsdfBlock(const VoxelIndex& o, int n, bool huge_page)
+TsdfBlock::TsdfBlock(const VoxelIndex& o, int n)
     : origin(o),
-      voxel_count(static_cast<std::uint32_t>(n) * n * n),
-      voxels(allocateVoxels(voxel_count, huge_page)),
-      observed_bits((static_cast<std::size_t>(voxel_count) + 63) / 64, 0),
-      written_groups(voxel_count / kVoxelsPerPage / 64 + 1, 0) {}
+      side(n),
+      voxels(static_cast<std::size_t>(n) * n * n),
+      observed_bits((static_cast<std::size_t>(n) * n * n + 63) / 64, 0) {}
 
 std::size_t TsdfBlock::observedCount() const {
   std::size_t n = 0;
@@ -144,16 +51,13 @@ std::size_t TsdfBlock::observedCount() const {
   return n;
 }
 
-VoxelIndex TsdfMap::blockOriginByDivision(const VoxelIndex& v) const {
+VoxelIndex TsdfMap::blockOriginOf(const VoxelIndex& v) const {
   const std::int64_t n = params_.voxels_per_side;
   return VoxelIndex(floorDiv(v.x(), n) * n, floorDiv(v.y(), n) * n, floorDiv(v.z(), n) * n);
 }
 
 std::uint64_t TsdfMap::blockKeyOf(const VoxelIndex& o) const {
-  if (block_shift_ >= 0)  // o is a multiple of 2^shift: the shift divides exactly
-    return SpatialHashGrid::packKey(o.x() >> block_shift_, o.y() >> block_shift_, o.z() >> block_shift_);
-  const std::int64_t n = params_.voxels_per_side;
-  return SpatialHashGrid::packKey(o.x() / n, o.y() / n, o.z() / n);
+  return packCellKey(o / static_cast<std::int64_t>(params_.voxels_per_side));  // o is a multiple of the side
 }
 
 const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
@@ -163,7 +67,7 @@ const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
   const auto it = blocks_.find(blockKeyOf(origin));
   if (it == blocks_.end()) return nullptr;
   const VoxelIndex l = v - origin;
-  return &it->second->voxels[layout_.index(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()))];
+  return &it->second->voxels[it->second->indexOf(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()))];
 }
 
 bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
@@ -172,7 +76,8 @@ bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
   return (origin.array().abs() <= limit).all();
 }
 
-TsdfBlock* TsdfMap::findOrCreateBlock(const VoxelIndex& origin) {
+TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
+  if (cached_block_ != nullptr && origin == cached_origin_) return cached_block_;
   if (!blockInRange(origin)) return nullptr;
   const std::uint64_t key = blockKeyOf(origin);
   auto it = blocks_.find(key);
@@ -185,10 +90,7 @@ TsdfBlock* TsdfMap::findOrCreateBlock(const VoxelIndex& origin) {
       if ((hi.array() < params_.crop_min.array()).any() || (lo.array() > params_.crop_max.array()).any())
         return nullptr;
     }
-    ordered_.reserve(ordered_.size() + 1);  // the insert below then cannot throw after the emplace
-    it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side, params_.huge_pages)).first;
-    const std::pair<std::uint64_t, TsdfBlock*> entry(key, it->second.get());
-    ordered_.insert(std::lower_bound(ordered_.begin(), ordered_.end(), entry), entry);
+    it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side)).first;
   }
   cached_origin_ = origin;
   cached_block_ = it->second.get();
@@ -201,8 +103,7 @@ bool TsdfMap::setVoxel(const VoxelIndex& v, const TsdfVoxel& value) {
   TsdfBlock* block = blockForUpdate(origin);
   if (block == nullptr) return false;
   const VoxelIndex l = v - origin;
-  const std::uint32_t idx = layout_.index(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()));
-  block->touchForWrite(idx);
+  const std::uint32_t idx = block->indexOf(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()));
   block->voxels[idx] = value;
   if (value.weight > 0.0f) block->markObserved(idx);
   return true;
@@ -210,22 +111,20 @@ bool TsdfMap::setVoxel(const VoxelIndex& v, const TsdfVoxel& value) {
 
 std::size_t TsdfMap::observedVoxelCount() const {
   std::size_t n = 0;
-  for (const auto& kb : ordered_) n += kb.second->observedCount();
+  for (const auto& kb : blocks_) n += kb.second->observedCount();
   return n;
 }
 
 std::size_t TsdfMap::memoryBytes() const {
   std::size_t bytes = sizeof(*this);
-  for (const auto& kb : ordered_)
+  for (const auto& kb : blocks_)
     bytes += sizeof(TsdfBlock) + blockVoxels() * sizeof(TsdfVoxel) +
-             kb.second->observed_bits.size() * sizeof(std::uint64_t) +
-             kb.second->written_groups.size() * sizeof(std::uint64_t) + 6 * sizeof(void*);
+             kb.second->observed_bits.size() * sizeof(std::uint64_t) + 6 * sizeof(void*);
   return bytes;
 }
 
 void TsdfMap::clear() {
   blocks_.clear();
-  ordered_.clear();
   cached_block_ = nullptr;
 }
 
@@ -244,17 +143,14 @@ bool TsdfMap::save(const std::string& path, std::string* error) const {
   put(&params_.voxel_size, 8);
   put(&vps, 4);
   put(&count, 8);
-  for (const auto& kb : ordered_) {
+  for (const auto& kb : blocks_) {
     const TsdfBlock& b = *kb.second;
     const std::int64_t origin[3] = {b.origin.x(), b.origin.y(), b.origin.z()};
     const std::uint32_t n = static_cast<std::uint32_t>(b.observedCount());
     put(origin, sizeof(origin));
     put(&n, 4);
     b.forEachObserved([&](std::uint32_t idx) {
-      // Files keep the x-fastest index, whatever the layout in memory.
-      const Eigen::Vector3i l = layout_.coords(idx);
-      const std::uint32_t file_idx = static_cast<std::uint32_t>(l.x()) + vps * (l.y() + vps * l.z());
-      put(&file_idx, 4);
+      put(&idx, 4);
       put(&b.voxels[idx].distance, 4);
       put(&b.voxels[idx].weight, 4);
     });
@@ -313,10 +209,7 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
       }
     }
     blocks_.swap(loaded.blocks_);
-    ordered_.swap(loaded.ordered_);
-    params_ = p;
-    layout_ = loaded.layout_;
-    block_shift_ = loaded.block_shift_;  // the file's block side may differ from the map's
+    params_ = p;  // the file's block side may differ from the map's
     cached_block_ = nullptr;
     return true;
   } catch (const std::bad_alloc&) {

@@ -15,7 +15,7 @@ struct BlockView {
   int n;
   const TsdfVoxel* at(int lx, int ly, int lz) const {
     if (lx >= 0 && ly >= 0 && lz >= 0 && lx < n && ly < n && lz < n)
-      return &block.voxels[map.layout().index(lx, ly, lz)];
+      return &block.voxels[block.indexOf(lx, ly, lz)];
     return map.voxel(block.origin + VoxelIndex(lx, ly, lz));
   }
 };
@@ -34,7 +34,7 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
     block.forEachObserved([&](std::uint32_t idx) {
       const TsdfVoxel& v = block.voxels[idx];
       if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) return;
-      const Eigen::Vector3i l = map.layout().coords(idx);
+      const Eigen::Vector3i l = block.coordsOf(idx);
       const int lx = l.x(), ly = l.y(), lz = l.z();
       Eigen::Vector3d c = map.voxelCenter(block.origin + VoxelIndex(lx, ly, lz));
       if (params.project_to_zero_crossing) {
@@ -73,7 +73,7 @@ TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
     block.forEachObserved([&](std::uint32_t idx) {
       const TsdfVoxel& v0 = block.voxels[idx];
       if (v0.weight < min_weight || std::abs(v0.distance) > skip) return;
-      const Eigen::Vector3i l = map.layout().coords(idx);
+      const Eigen::Vector3i l = block.coordsOf(idx);
       const int lx = l.x(), ly = l.y(), lz = l.z();
       double d[8];
       Eigen::Vector3d p[8];

@@ -7,12 +7,12 @@
 namespace fruit_shape_completion {
 namespace planner {
 
-Evaluation evaluate(const std::vector<EstimatedFruit>& detected, const std::vector<TruthFruit>& truth,
+Evaluation evaluate(const std::vector<FruitEstimate>& detected, const std::vector<TruthFruit>& truth,
                     double max_distance) {
   std::vector<std::tuple<double, int, int>> pairs;
   for (int d = 0; d < static_cast<int>(detected.size()); ++d)
     for (int t = 0; t < static_cast<int>(truth.size()); ++t) {
-      const double dist = (detected[d].center - truth[t].center).norm();
+      const double dist = (detected[d].center() - truth[t].center).norm();
       if (dist <= max_distance) pairs.emplace_back(dist, d, t);
     }
   std::sort(pairs.begin(), pairs.end());

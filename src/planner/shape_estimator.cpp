@@ -1,5 +1,4 @@
 #include <fruit_shape_completion/planner/shape_estimator.h>
-#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 
 #include <iostream>
 
@@ -52,8 +51,8 @@ PointList ShapeEstimatorHost::extraTargets() const {
   return all;
 }
 
-std::vector<EstimatedFruit> ShapeEstimatorHost::fruits(std::size_t i) const {
-  std::vector<EstimatedFruit> f;
+std::vector<FruitEstimate> ShapeEstimatorHost::fruits(std::size_t i) const {
+  std::vector<FruitEstimate> f;
   if (enabled(i)) guarded(i, [&](ShapeEstimator& e) { f = e.fruits(); });  // f stays empty if it throws
   return f;
 }
@@ -61,63 +60,6 @@ std::vector<EstimatedFruit> ShapeEstimatorHost::fruits(std::size_t i) const {
 void ShapeEstimatorHost::reset() {
   for (std::size_t i = 0; i < estimators_.size(); ++i)
     if (guarded(i, [](ShapeEstimator& e) { e.reset(); })) enabled_[i] = 1;
-}
-
-SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)
-    : params_(params), map_(params.map), integrator_(params.integrator), pipeline_(params.pipeline) {}
-
-void SuperellipsoidEstimator::insertView(const ViewData& view) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  last_ = integrator_.integrate(map_, view.fruit_cloud, view.sensor_pose);
-  dirty_ = dirty_ || last_.rays > 0;
-}
-
-void SuperellipsoidEstimator::update() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (!dirty_) return;
-  surface_ = extractSurfacePoints(map_, params_.surface);
-  pipeline_.update(surface_);
-  dirty_ = false;
-}
-
-std::vector<EstimatedFruit> SuperellipsoidEstimator::fruits() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  std::vector<EstimatedFruit> out;
-  for (const auto& f : pipeline_.fruits())
-    if (f.accepted) out.push_back({f.id, f.center(), f.volume});
-  return out;
-}
-
-PointList SuperellipsoidEstimator::extraTargets() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  PointList out;
-  if (!params_.publish_targets) return out;
-  for (const auto& f : pipeline_.fruits())
-    if (f.accepted) out.insert(out.end(), f.missing_surface.begin(), f.missing_surface.end());
-  return out;
-}
-
-void SuperellipsoidEstimator::reset() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  map_.clear();
-  pipeline_.reset();
-  surface_.clear();
-  dirty_ = false;
-}
-
-std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return pipeline_.fruits();
-}
-
-PointList SuperellipsoidEstimator::surface() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return surface_;
-}
-
-IntegrationReport SuperellipsoidEstimator::lastIntegration() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return last_;
 }
 
 }  // namespace planner

@@ -162,8 +162,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     rec.view = view;
     rec.time = t;
     rec.position = pos;
-    std::vector<EstimatedFruit> old_fruits, se_fruits;
-    for (const auto& c : tree.roiClusters(10)) old_fruits.push_back({-1, c.center(), c.volume()});
+    std::vector<FruitEstimate> old_fruits, se_fruits;
+    for (const auto& c : tree.roiClusters(10)) old_fruits.push_back(FruitEstimate::ofBox(c.center(), c.volume()));
     se_fruits = host.fruits(0);
     rec.old_true = evaluate(old_fruits, truth.enclosed);
     rec.se_true = evaluate(se_fruits, truth.enclosed);

@@ -27,7 +27,6 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   read(nh, "voxel_size", p.map.voxel_size);
   read(nh, "voxels_per_side", p.map.voxels_per_side);
   read(nh, "max_blocks", p.map.max_blocks);
-  read(nh, "huge_pages", p.map.huge_pages);
   read(nh, "truncation_voxels", p.integrator.truncation_voxels);
   read(nh, "max_weight", p.integrator.max_weight);
   read(nh, "min_range", p.integrator.min_range);
@@ -35,7 +34,7 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   read(nh, "remove_outliers", p.integrator.remove_outliers);
   read(nh, "outlier_k", p.integrator.outliers.k);
   read(nh, "outlier_std_mul", p.integrator.outliers.std_mul);
-  read(nh, "integration_threads", p.integrator.threads);
+  read(nh, "outlier_radius", p.integrator.outliers.search_radius);
   read(nh, "cluster_tolerance", p.pipeline.clustering.tolerance);
   read(nh, "cluster_min_size", p.pipeline.clustering.min_size);
   read(nh, "cluster_max_size", p.pipeline.clustering.max_size);

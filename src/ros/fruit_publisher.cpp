@@ -1,11 +1,14 @@
 #include <fruit_shape_completion/SuperellipsoidArray.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 
-#include <sensor_msgs/point_cloud2_iterator.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl_conversions/pcl_conversions.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 #include <sstream>
 
 namespace fruit_shape_completion {
@@ -14,88 +17,69 @@ namespace ros_io {
 sensor_msgs::PointCloud2 toCloud(const PointList& points, const std::string& frame, const ros::Time& stamp,
                                  const std::vector<std::array<std::uint8_t, 3>>& colors) {
   sensor_msgs::PointCloud2 msg;
+  auto fill = [&](auto& cloud) {
+    cloud.reserve(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      typename std::decay_t<decltype(cloud)>::PointType p;
+      p.x = static_cast<float>(points[i].x());
+      p.y = static_cast<float>(points[i].y());
+      p.z = static_cast<float>(points[i].z());
+      if constexpr (std::is_same_v<decltype(p), pcl::PointXYZRGB>) {
+        p.r = colors[i][0];
+        p.g = colors[i][1];
+        p.b = colors[i][2];
+      }
+      cloud.push_back(p);
+    }
+    pcl::toROSMsg(cloud, msg);
+  };
+  if (!colors.empty() && colors.size() == points.size()) {
+    pcl::PointCloud<pcl::PointXYZRGB> cloud;
+    fill(cloud);
+  } else {
+    pcl::PointCloud<pcl::PointXYZ> cloud;
+    fill(cloud);
+  }
   msg.header.frame_id = frame;
   msg.header.stamp = stamp;
-  sensor_msgs::PointCloud2Modifier mod(msg);
-  const bool rgb = !colors.empty() && colors.size() == points.size();
-  if (rgb)
-    mod.setPointCloud2FieldsByString(2, "xyz", "rgb");
-  else
-    mod.setPointCloud2FieldsByString(1, "xyz");
-  mod.resize(points.size());
-  sensor_msgs::PointCloud2Iterator<float> x(msg, "x"), y(msg, "y"), z(msg, "z");
-  for (std::size_t i = 0; i < points.size(); ++i, ++x, ++y, ++z) {
-    *x = static_cast<float>(points[i].x());
-    *y = static_cast<float>(points[i].y());
-    *z = static_cast<float>(points[i].z());
-  }
-  if (rgb) {
-    sensor_msgs::PointCloud2Iterator<std::uint8_t> r(msg, "r"), g(msg, "g"), b(msg, "b");
-    for (std::size_t i = 0; i < points.size(); ++i, ++r, ++g, ++b) {
-      *r = colors[i][0];
-      *g = colors[i][1];
-      *b = colors[i][2];
-    }
-  }
   return msg;
 }
 
 bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size_t* non_finite, std::string* error) {
   points->clear();
   *non_finite = 0;
-  std::int64_t off[3] = {-1, -1, -1};
-  int type[3] = {0, 0, 0};
-  const char* names[3] = {"x", "y", "z"};
+  // PCL's conversion trusts the header: a message whose sizes lie is refused here first.
+  int xyz = 0;
   for (const auto& f : msg.fields)
-    for (int k = 0; k < 3; ++k)
-      if (f.name == names[k]) {
-        off[k] = f.offset;
-        type[k] = f.datatype;
+    if (f.name == "x" || f.name == "y" || f.name == "z") {
+      if (f.datatype != sensor_msgs::PointField::FLOAT32 || std::uint64_t(f.offset) + 4 > msg.point_step) {
+        *error = "cloud field '" + f.name + "' is not a float32 inside the point step";
+        return false;
       }
-  for (int k = 0; k < 3; ++k) {
-    if (off[k] < 0) {
-      *error = "cloud has no x, y, z fields";
-      return false;
+      ++xyz;
     }
-    if (type[k] != sensor_msgs::PointField::FLOAT32 && type[k] != sensor_msgs::PointField::FLOAT64) {
-      *error = "cloud x, y, z fields are not float32/float64";
-      return false;
-    }
+  if (xyz != 3) {
+    *error = "cloud has no x, y, z fields";
+    return false;
   }
   if (msg.is_bigendian) {
     *error = "big-endian clouds are not supported";
     return false;
   }
   // 64-bit products: a lying header must not wrap around and pass the size check.
-  const std::uint64_t n = static_cast<std::uint64_t>(msg.width) * msg.height;
-  if (msg.point_step == 0 || static_cast<std::uint64_t>(msg.row_step) < static_cast<std::uint64_t>(msg.width) * msg.point_step ||
-      static_cast<std::uint64_t>(msg.data.size()) < static_cast<std::uint64_t>(msg.row_step) * msg.height) {
+  if (std::uint64_t(msg.row_step) < std::uint64_t(msg.width) * msg.point_step ||
+      std::uint64_t(msg.data.size()) < std::uint64_t(msg.row_step) * msg.height) {
     *error = "cloud data is shorter than its width, height and steps say";
     return false;
   }
-  for (int k = 0; k < 3; ++k)
-    if (static_cast<std::uint64_t>(off[k]) + (type[k] == sensor_msgs::PointField::FLOAT64 ? 8u : 4u) > msg.point_step) {
-      *error = "cloud fields lie outside the point step";
-      return false;
-    }
-  points->reserve(n);
-  for (std::uint32_t row = 0; row < msg.height; ++row)
-    for (std::uint32_t col = 0; col < msg.width; ++col) {
-      const std::uint8_t* p = &msg.data[static_cast<std::size_t>(row) * msg.row_step + static_cast<std::size_t>(col) * msg.point_step];
-      double v[3];
-      for (int k = 0; k < 3; ++k) {
-        if (type[k] == sensor_msgs::PointField::FLOAT32) {
-          float f;
-          std::memcpy(&f, p + off[k], 4);
-          v[k] = f;
-        } else {
-          std::memcpy(&v[k], p + off[k], 8);
-        }
-      }
-      const Eigen::Vector3d q(v[0], v[1], v[2]);
-      if (q.allFinite()) points->push_back(q);
-      else ++*non_finite;
-    }
+  pcl::PointCloud<pcl::PointXYZ> cloud;
+  pcl::fromROSMsg(msg, cloud);
+  points->reserve(cloud.size());
+  for (const auto& p : cloud) {
+    const Eigen::Vector3d q(p.x, p.y, p.z);
+    if (q.allFinite()) points->push_back(q);
+    else ++*non_finite;
+  }
   return true;
 }
 

@@ -33,7 +33,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     estimator_->update();
     publisher_->publish(estimator_->estimates(), estimator_->surface(), ros::Time::now());
   }
-  std::vector<planner::EstimatedFruit> fruits() const override { return check(), estimator_->fruits(); }
+  std::vector<FruitEstimate> fruits() const override { return check(), estimator_->fruits(); }
   PointList extraTargets() const override { return check(), estimator_->extraTargets(); }
   void reset() override {
     check();

@@ -1,5 +1,5 @@
 #include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/synthetic_fruit.h>
+#include <fruit_shape_completion/sim/synthetic_fruit.h>
 
 #include <Eigen/Geometry>
 #include <cmath>

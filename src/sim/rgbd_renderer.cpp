@@ -1,4 +1,4 @@
-#include <fruit_shape_completion/parallel_parts.h>
+#include "parallel_parts.h"
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 
 #include <embree3/rtcore.h>

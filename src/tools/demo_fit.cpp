@@ -3,7 +3,7 @@
 // table compares each fit with the known truth.
 //   demo_fit [--seed N]
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
-#include <fruit_shape_completion/synthetic_fruit.h>
+#include <fruit_shape_completion/sim/synthetic_fruit.h>
 
 #include <cstdio>
 #include <cstring>

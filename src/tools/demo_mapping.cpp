@@ -3,9 +3,9 @@
 // fruit pixels go into the TSDF map, its surface is clustered and fitted, and the table shows
 // how the volume estimates converge as more of each fruit is seen.
 //   demo_mapping [--seed N] [--views N] [--save-map FILE.tsdf]
-#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
-#include <fruit_shape_completion/synthetic_fruit.h>
+#include <fruit_shape_completion/sim/synthetic_fruit.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 

@@ -1,15 +1,15 @@
-// TSDF map benchmarks. Run: scripts/run.sh bench --benchmark_filter='Tsdf|Neighbourhood' --benchmark_format=json
+// TSDF map and point-cloud benchmarks. Run: scripts/run.sh bench --benchmark_filter='Tsdf|FiftyFruit' --benchmark_format=json
 #include <benchmark/benchmark.h>
-#include <fruit_shape_completion/analytic_depth_camera.h>
-#include <fruit_shape_completion/neighbourhood_statistics.h>
-#include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/sim/analytic_depth_camera.h>
+#include <fruit_shape_completion/euclidean_clustering.h>
+#include <fruit_shape_completion/statistical_outlier_filter.h>
+#include <fruit_shape_completion/surface_normals.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 
 #include <cmath>
 #include <memory>
 #include <random>
-#include <unordered_map>
 
 using namespace fruit_shape_completion;
 
@@ -70,15 +70,14 @@ BENCHMARK(BM_TsdfIntegrateFruitFrame)->Unit(benchmark::kMillisecond);
 
 // A full 640 x 480 frame (two fruit clusters and a back wall; 0.3-1.5 m) at 4 mm.
 // Arg 1: default integrator (outlier removal and incidence-limited band, which need a
-// neighbourhood pass over all merged points); Arg 0: both off. Second arg: threads. Third
-// arg: 0 into a fresh map (first touch of every block page is included), 1 into a map that
-// already holds this area (as every later frame of a run).
+// neighbourhood pass over all merged points); Arg 0: both off. Second arg: 0 into a fresh map
+// (allocating its blocks is included), 1 into a map that already holds this area (as every
+// later frame of a run).
 static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
   PinholeCamera cam;
   const PointList frame = fullFrame(&cam);
   TsdfIntegratorParams params;
   params.remove_outliers = params.incidence_limited_back_band = state.range(0) != 0;
-  params.threads = static_cast<int>(state.range(1));
   const TsdfIntegrator integ(params);
   std::size_t rays = 0, blocks = 0;
   double merge = 0, neighbourhood = 0, cast = 0;  // phase seconds summed over the iterations
@@ -88,7 +87,7 @@ static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
     cast += r.ray_seconds;
     return r.rays;
   };
-  const bool warm = state.range(2) != 0;
+  const bool warm = state.range(1) != 0;
   TsdfMap warm_map;
   if (warm) integ.integrate(warm_map, frame, cam.position);
   for (auto _ : state) {
@@ -115,71 +114,32 @@ static void BM_TsdfIntegrateFullFrame(benchmark::State& state) {
   state.counters["rays_ms"] = cast * per_ms;
 }
 BENCHMARK(BM_TsdfIntegrateFullFrame)
-    ->Args({1, 1, 0})->Args({1, 1, 1})->Args({1, 2, 0})->Args({1, 2, 1})
-    ->Args({0, 1, 0})->Args({0, 1, 1})->Args({0, 2, 0})->Args({0, 2, 1})
+    ->Args({1, 0})->Args({1, 1})->Args({0, 0})->Args({0, 1})
     ->Unit(benchmark::kMillisecond);
 
-// The integrator's neighbourhood pass alone (neighbourhood_statistics.h), on the full frame's
-// points merged per 4 mm voxel (283 k), at the defaults (1 cm, k 10), one thread, its grid
-// kept between calls as the integrator keeps it. Arg: 0 k-NN means and normals, 1 normals
-// only, 2 k-NN means only, 3 building the grid only.
-static void BM_NeighbourhoodPass(benchmark::State& state) {
-  PinholeCamera cam;
-  const PointList frame = fullFrame(&cam);
-  std::unordered_map<std::uint64_t, std::size_t> slot;
-  PointList sums;
-  std::vector<int> counts;
-  for (const Point& p : frame) {
-    const Eigen::Vector3d v = (p / 0.004).array().floor();
-    const auto ins = slot.emplace(SpatialHashGrid::packKey(static_cast<std::int64_t>(v.x()), static_cast<std::int64_t>(v.y()),
-                                                           static_cast<std::int64_t>(v.z())),
-                                  sums.size());
-    if (ins.second) {
-      sums.push_back(Point::Zero());
-      counts.push_back(0);
-    }
-    sums[ins.first->second] += p;
-    ++counts[ins.first->second];
-  }
-  PointList ends(sums.size());
-  for (std::size_t i = 0; i < ends.size(); ++i) ends[i] = sums[i] / counts[i];
-  const int mode = static_cast<int>(state.range(0));
-  NeighbourhoodQuery query;  // the integrator's defaults: 1 cm, k 10, normals
-  query.k = mode == 1 ? 0 : 10;
-  query.normals = mode != 2;
-  SpatialHashGrid grid;
-  std::vector<double> knn;
-  std::vector<Eigen::Vector3d> normals;
-  for (auto _ : state) {
-    if (mode == 3) {
-      grid.build(ends, query.radius);
-      benchmark::DoNotOptimize(grid.cells().data());
-    } else {
-      analyseNeighbourhoods(ends, query, &knn, &normals, &grid);
-      benchmark::DoNotOptimize(knn.data());
-      benchmark::DoNotOptimize(normals.data());
-    }
-  }
-  state.counters["points"] = static_cast<double>(ends.size());
-  state.counters["cells"] = static_cast<double>(grid.cells().size());
-}
-BENCHMARK(BM_NeighbourhoodPass)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);
 
-// Surface extraction from a map holding 50 fruits, each cluster of 5 seen from 6 directions.
-static void BM_TsdfExtractSurface(benchmark::State& state) {
-  TsdfMap map;
-  TsdfIntegratorParams params;
-  const TsdfIntegrator integ(params);
-  const PointList dirs = fibonacciSphere(6);
-  for (int c = 0; c < 10; ++c) {  // 10 clusters of 5 fruits along a 3 m row
-    const Eigen::Vector3d center(0.3 * c, 0.6, 0.5);
-    const AnalyticScene scene = fruitCluster(center, 5, 100 + c);
-    Eigen::Vector3d origin;
-    for (const auto& d : dirs) {
-      const PinholeCamera cam = PinholeCamera::lookingAt(center + 0.4 * d, center, 320, 240);
-      integ.integrate(map, renderDepth(scene, cam).points, cam.position);
+// A map holding 50 fruits, each cluster of 5 seen from 6 directions, along a 3 m row.
+const TsdfMap& fiftyFruitMap() {
+  static const TsdfMap map = [] {
+    TsdfMap m;
+    const TsdfIntegrator integ;
+    const PointList dirs = fibonacciSphere(6);
+    for (int c = 0; c < 10; ++c) {
+      const Eigen::Vector3d center(0.3 * c, 0.6, 0.5);
+      const AnalyticScene scene = fruitCluster(center, 5, 100 + c);
+      for (const auto& d : dirs) {
+        const PinholeCamera cam = PinholeCamera::lookingAt(center + 0.4 * d, center, 320, 240);
+        integ.integrate(m, renderDepth(scene, cam).points, cam.position);
+      }
     }
-  }
+    return m;
+  }();
+  return map;
+}
+
+// Surface extraction from the 50-fruit map.
+static void BM_TsdfExtractSurface(benchmark::State& state) {
+  const TsdfMap& map = fiftyFruitMap();
   std::size_t n = 0;
   SurfaceExtractionParams extraction;
   extraction.project_to_zero_crossing = state.range(0) != 0;
@@ -195,3 +155,30 @@ static void BM_TsdfExtractSurface(benchmark::State& state) {
 }
 // Arg 0: voxel centres (as voxblox), 1: projected onto the zero crossing.
 BENCHMARK(BM_TsdfExtractSurface)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The point-cloud steps of an update on the 50-fruit map's surface (PCL underneath).
+static void BM_FiftyFruitClustering(benchmark::State& state) {
+  const PointList surface = extractSurfacePoints(fiftyFruitMap());
+  std::size_t clusters = 0;
+  for (auto _ : state) clusters = euclideanClusters(surface, ClusteringParams()).size();
+  state.counters["points"] = static_cast<double>(surface.size());
+  state.counters["clusters"] = static_cast<double>(clusters);
+}
+BENCHMARK(BM_FiftyFruitClustering)->Unit(benchmark::kMillisecond);
+
+static void BM_FiftyFruitOutliers(benchmark::State& state) {
+  const PointList surface = extractSurfacePoints(fiftyFruitMap());
+  for (auto _ : state) benchmark::DoNotOptimize(findStatisticalOutliers(surface, OutlierFilterParams()).data());
+  state.counters["points"] = static_cast<double>(surface.size());
+}
+BENCHMARK(BM_FiftyFruitOutliers)->Unit(benchmark::kMillisecond);
+
+// All normals (max_points 0) of the surface, 1.5 cm neighbourhoods.
+static void BM_FiftyFruitNormals(benchmark::State& state) {
+  const PointList surface = extractSurfacePoints(fiftyFruitMap());
+  NormalParams params;
+  params.max_points = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(estimateNormals(surface, params, Eigen::Vector3d::Zero()).valid);
+  state.counters["points"] = static_cast<double>(surface.size());
+}
+BENCHMARK(BM_FiftyFruitNormals)->Unit(benchmark::kMillisecond);

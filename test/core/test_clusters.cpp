@@ -1,15 +1,15 @@
 #include <fruit_shape_completion/euclidean_clustering.h>
 #include <fruit_shape_completion/fruit_center.h>
-#include <fruit_shape_completion/neighbourhood_statistics.h>
-#include <fruit_shape_completion/spatial_hash_grid.h>
 #include <fruit_shape_completion/statistical_outlier_filter.h>
 #include <fruit_shape_completion/surface_normals.h>
-#include <fruit_shape_completion/synthetic_fruit.h>
+#include <fruit_shape_completion/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <limits>
+#include <numeric>
+#include <random>
 
 using namespace fruit_shape_completion;
 
@@ -23,178 +23,51 @@ PointList scan(const Superellipsoid& s, double seen = 1.0, unsigned seed = 1) {
 }
 }  // namespace
 
-TEST(SpatialHashGrid, RadiusSearchMatchesBruteForce) {
-  std::mt19937 rng(1);
-  std::uniform_real_distribution<double> u(-0.1, 0.1);
-  PointList pts;
-  for (int i = 0; i < 2000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
+TEST(StatisticalOutlierFilter, FlagsStraysAsTheDefinitionSays) {
+  // A noisy sphere with strays around it: a point is an outlier when its mean distance to its
+  // k nearest neighbours (within search_radius, else that radius) exceeds the mean of that value
+  // by std_mul standard deviations (the sample deviation, as PCL).
+  PointList pts = scan(sphere(0.04, Eigen::Vector3d(0.3, 0.1, 0.5)));
+  const std::size_t on_sphere = pts.size();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-0.12, 0.12);
+  while (pts.size() < on_sphere + 40) {
+    const Eigen::Vector3d p = Eigen::Vector3d(0.3, 0.1, 0.5) + Eigen::Vector3d(u(rng), u(rng), u(rng));
+    if (std::abs((p - Eigen::Vector3d(0.3, 0.1, 0.5)).norm() - 0.04) > 0.03) pts.push_back(p);
+  }
   pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
-  const SpatialHashGrid grid(pts, 0.02);
-  std::vector<int> found;
-  for (int q = 0; q < 50; ++q) {
-    const Point p(u(rng), u(rng), u(rng));
-    for (double radius : {0.01, 0.02, 0.035}) {
-      grid.radiusSearch(p, radius, found);
-      std::sort(found.begin(), found.end());
-      std::vector<int> brute;
-      for (int i = 0; i < static_cast<int>(pts.size()); ++i)
-        if ((pts[i] - p).norm() <= radius) brute.push_back(i);
-      EXPECT_EQ(found, brute);
-      EXPECT_EQ(grid.anyWithin(p, radius), !brute.empty());
-    }
+  OutlierFilterParams params;
+  const std::vector<char> flags = findStatisticalOutliers(pts, params);
+  ASSERT_EQ(flags.size(), pts.size());
+  EXPECT_TRUE(flags.back());  // the NaN point
+  // The definition, by brute force over the finite points.
+  const std::size_t n = pts.size() - 1;
+  std::vector<double> mean_knn(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::vector<double> d;
+    for (std::size_t j = 0; j < n; ++j)
+      if (j != i) d.push_back((pts[j] - pts[i]).norm());
+    std::sort(d.begin(), d.end());
+    // k nearest within search_radius; fewer there: the radius.
+    const bool enough = d.size() >= static_cast<std::size_t>(params.k) && d[params.k - 1] <= params.search_radius;
+    mean_knn[i] = enough ? std::accumulate(d.begin(), d.begin() + params.k, 0.0) / params.k : params.search_radius;
   }
+  const double mean = std::accumulate(mean_knn.begin(), mean_knn.end(), 0.0) / n;
+  double var = 0.0;
+  for (double m : mean_knn) var += (m - mean) * (m - mean) / (n - 1);
+  const double threshold = mean + params.std_mul * std::sqrt(var);
+  std::size_t agree = 0, strays = 0, sphere_flags = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    agree += (mean_knn[i] > threshold) == (flags[i] != 0);
+    (i < on_sphere ? sphere_flags : strays) += flags[i];
+  }
+  EXPECT_GE(agree, n - 1);  // rounding may tip a point at the threshold
+  EXPECT_GT(strays, 30u);
+  EXPECT_LT(sphere_flags, on_sphere / 50);
+  params.k = 0;
+  EXPECT_THROW(params.validate(), std::invalid_argument);
 }
 
-// forEachCell's promise (every point within the cell size of a cell's point lies in the
-// ranges it hands over) and radius search, both against brute force.
-void expectGridMatchesBruteForce(const SpatialHashGrid& grid, const PointList& pts, double cell) {
-  std::size_t stored = 0;
-  grid.forEachCell(0, grid.cells().size(), [&](const SpatialHashGrid::Cell& c, const std::pair<int, int>* ranges, int nr) {
-    for (int j = c.begin; j < c.end; ++j) {
-      ++stored;
-      const Point& p = grid.storedPoint(j);
-      EXPECT_EQ(pts[static_cast<std::size_t>(grid.originalIndex(j))], p);
-      std::vector<int> in_ranges, brute;
-      for (int r = 0; r < nr; ++r)
-        for (int k = ranges[r].first; k < ranges[r].second; ++k)
-          if ((grid.storedPoint(k) - p).norm() <= cell) in_ranges.push_back(grid.originalIndex(k));
-      for (int i = 0; i < static_cast<int>(pts.size()); ++i)
-        if (pts[static_cast<std::size_t>(i)].allFinite() && (pts[static_cast<std::size_t>(i)] - p).norm() <= cell)
-          brute.push_back(i);
-      std::sort(in_ranges.begin(), in_ranges.end());
-      EXPECT_EQ(in_ranges, brute);
-    }
-  });
-  std::size_t finite = 0;
-  for (const Point& p : pts) finite += p.allFinite() ? 1 : 0;
-  EXPECT_EQ(stored, finite);
-  std::vector<int> found;
-  for (std::size_t q = 0; q < pts.size(); q += 37) {
-    if (!pts[q].allFinite()) continue;
-    grid.radiusSearch(pts[q], cell, found);
-    std::sort(found.begin(), found.end());
-    std::vector<int> brute;
-    for (int i = 0; i < static_cast<int>(pts.size()); ++i)
-      if (pts[static_cast<std::size_t>(i)].allFinite() && (pts[static_cast<std::size_t>(i)] - pts[q]).norm() <= cell)
-        brute.push_back(i);
-    EXPECT_EQ(found, brute);
-  }
-}
-
-TEST(SpatialHashGrid, RebuiltInPlaceOverWideCloudsMatchesBruteForce) {
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(-0.1, 0.1);
-  // Two clusters 700 m apart (a key of many bits: several radix passes, negative cells), far
-  // and non-finite points. The same grid object is then rebuilt over a smaller cloud.
-  PointList wide;
-  for (int i = 0; i < 1500; ++i) wide.emplace_back(u(rng), u(rng), u(rng));
-  for (int i = 0; i < 500; ++i) wide.emplace_back(-400.0 + u(rng), 300.0 + u(rng), -2.0 + u(rng));
-  wide.emplace_back(1e13, 0.0, 0.0);
-  wide.emplace_back(-1e300, 0.0, 0.0);
-  wide.emplace_back(std::numeric_limits<double>::infinity(), 0.0, 0.0);
-  SpatialHashGrid grid;
-  grid.build(wide, 0.02);
-  {
-    SCOPED_TRACE("wide");
-    expectGridMatchesBruteForce(grid, wide, 0.02);
-  }
-  PointList small(wide.begin(), wide.begin() + 700);
-  grid.build(small, 0.01);
-  {
-    SCOPED_TRACE("rebuilt");
-    expectGridMatchesBruteForce(grid, small, 0.01);
-  }
-  grid.build(PointList{Point(std::numeric_limits<double>::quiet_NaN(), 0, 0)}, 0.01);
-  EXPECT_TRUE(grid.cells().empty());
-  EXPECT_FALSE(grid.anyWithin(Point::Zero(), 1.0));
-}
-
-// The integrator's one-pass neighbourhood statistics against a brute-force double computation:
-// the k-NN mean of every point (with exact duplicates, sparse stray points and a NaN), the
-// outlier flags that follow from it, and the normals against an eigen-decomposition of each
-// point's own neighbourhood.
-TEST(NeighbourhoodStatistics, MatchBruteForceOnANoisySphereWithStrays) {
-  std::mt19937 rng(7);
-  std::normal_distribution<double> noise(0.0, 0.001);
-  std::uniform_real_distribution<double> u(-0.08, 0.08);
-  PointList pts;
-  for (const Point& d : fibonacciSphere(3000)) pts.push_back(0.04 * d + Point(noise(rng), noise(rng), noise(rng)));
-  for (int i = 0; i < 40; ++i) pts.push_back(pts[static_cast<std::size_t>(i * 53)]);  // exact duplicates
-  for (int i = 0; i < 60; ++i) pts.emplace_back(u(rng), u(rng), 0.06 + std::abs(u(rng)));  // strays
-  pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
-
-  // A sphere point has ~16 neighbours at 6 mm and ~45 at 1 cm (the rank count), ~105 at 1.5 cm
-  // and ~190 at 2 cm (over its limit: the extraction, from either end with k 60 and 10).
-  const std::pair<double, int> cases[] = {{0.01, 10}, {0.006, 10}, {0.02, 10}, {0.015, 60}};
-  for (const auto& [radius, k] : cases) {
-    SCOPED_TRACE(testing::Message() << "radius " << radius << " k " << k);
-    NeighbourhoodQuery q;  // normals
-    q.radius = radius;
-    q.k = k;
-    std::vector<double> knn;
-    std::vector<Eigen::Vector3d> normals;
-    analyseNeighbourhoods(pts, q, &knn, &normals);
-    ASSERT_EQ(knn.size(), pts.size());
-    ASSERT_EQ(normals.size(), pts.size());
-
-    int sparse = 0, compared = 0, close_normals = 0;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      if (!pts[i].allFinite()) {
-        EXPECT_TRUE(std::isnan(knn[i]));  // as the stand-alone filter: no statistic, flagged
-        EXPECT_FALSE(normals[i].allFinite());
-        continue;
-      }
-      std::vector<double> d2;
-      PointList hood;
-      for (std::size_t j = 0; j < pts.size(); ++j) {
-        const double dd = (pts[j] - pts[i]).squaredNorm();
-        if (pts[j].allFinite() && dd <= q.radius * q.radius) {
-          hood.push_back(pts[j]);
-          if (j != i) d2.push_back(dd);
-        }
-      }
-      EXPECT_NEAR(knn[i], meanKnnDistance(d2, q.k, q.radius), 1e-7) << i;
-      if (hood.size() < 5) {
-        ++sparse;
-        EXPECT_FALSE(normals[i].allFinite()) << i;
-        continue;
-      }
-      if (!normals[i].allFinite()) continue;
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (const Point& h : hood) mean += h;
-      mean /= static_cast<double>(hood.size());
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      for (const Point& h : hood) cov += (h - mean) * (h - mean).transpose();
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-      EXPECT_NEAR(normals[i].norm(), 1.0, 1e-9);
-      ++compared;
-      if (std::abs(normals[i].dot(es.eigenvectors().col(0))) > std::cos(2.0 * M_PI / 180.0)) ++close_normals;
-    }
-    EXPECT_GT(sparse, 30);      // most strays have under 5 neighbours: no normal, k-NN mean = radius
-    EXPECT_GT(compared, 2900);  // the sphere's points all got a normal
-    EXPECT_GT(close_normals, 0.99 * compared);
-
-    // The outlier flags equal those of the stand-alone filter (its own neighbour search).
-    const std::vector<char> flags = flagStatisticalOutliers(knn, 2.0);
-    OutlierFilterParams of;
-    of.search_radius = radius;
-    of.k = k;
-    EXPECT_EQ(flags, findStatisticalOutliers(pts, of));
-    int stray_flags = 0;
-    for (std::size_t i = 3040; i + 1 < pts.size(); ++i) stray_flags += flags[i];
-    EXPECT_GT(stray_flags, 30);
-
-    // Two threads split the cells and give the same values.
-    q.threads = 2;
-    std::vector<double> knn2;
-    std::vector<Eigen::Vector3d> normals2;
-    analyseNeighbourhoods(pts, q, &knn2, &normals2);
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      if (!std::isnan(knn[i])) EXPECT_EQ(knn[i], knn2[i]) << i;
-      if (normals[i].allFinite()) EXPECT_EQ(normals[i], normals2[i]) << i;
-    }
-  }
-}
 
 TEST(EuclideanClustering, TwoFruitsTwoCentimetresApartStayTwo) {
   // Surfaces 2 cm apart (as a TSDF surface would deliver them) are two clusters at 1 cm.

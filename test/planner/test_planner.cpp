@@ -2,7 +2,7 @@
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/synthetic_fruit.h>
+#include <fruit_shape_completion/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -45,7 +45,7 @@ class ThrowingEstimator : public ShapeEstimator {
   std::string name() const override { return "throwing"; }
   void insertView(const ViewData&) override { throw std::runtime_error("broken on purpose"); }
   void update() override {}
-  std::vector<EstimatedFruit> fruits() const override { return {}; }
+  std::vector<FruitEstimate> fruits() const override { return {}; }
   PointList extraTargets() const override { return {}; }
   void reset() override {}
 };
@@ -121,7 +121,7 @@ TEST(Evaluation, BoxTruthIsTheBoxOfTheFruitsVoxelCentres) {
   EXPECT_LT((t.box[0].center - Eigen::Vector3d(0.03, 0.0, 0.025)).norm(), 1e-12);
   EXPECT_EQ(t.enclosed[0].volume, f.volume);
   // An Old box of exactly those voxel centres scores 1 against it, 0 against the enclosed volume.
-  const std::vector<EstimatedFruit> old = {{-1, t.box[0].center, 0.05 * 0.03 * 0.04}};
+  const std::vector<FruitEstimate> old = {FruitEstimate::ofBox(t.box[0].center, 0.05 * 0.03 * 0.04)};
   EXPECT_NEAR(evaluate(old, t.box).ma50.accuracy, 1.0, 1e-9);
   EXPECT_EQ(evaluate(old, t.enclosed).ma50.fruits, 0);
 }
@@ -129,11 +129,11 @@ TEST(Evaluation, BoxTruthIsTheBoxOfTheFruitsVoxelCentres) {
 TEST(Evaluation, GreedyOneToOneMatchingAndSubsets) {
   const std::vector<TruthFruit> truth = {{Eigen::Vector3d(0, 0, 0), 100e-6}, {Eigen::Vector3d(1, 0, 0), 200e-6},
                                          {Eigen::Vector3d(2, 0, 0), 100e-6}};
-  const std::vector<EstimatedFruit> det = {
-      {0, Eigen::Vector3d(0.01, 0, 0), 90e-6},    // acc 0.9, 1 cm
-      {1, Eigen::Vector3d(0.05, 0, 0), 100e-6},   // also nearest to fruit 0, but taken: unmatched within 0.2
-      {2, Eigen::Vector3d(1.0, 0.02, 0), 500e-6}, // acc -0.5
-      {3, Eigen::Vector3d(2.0, 0.3, 0), 100e-6}}; // 30 cm away: no match
+  const std::vector<FruitEstimate> det = {
+      FruitEstimate::ofBox(Eigen::Vector3d(0.01, 0, 0), 90e-6),    // acc 0.9, 1 cm
+      FruitEstimate::ofBox(Eigen::Vector3d(0.05, 0, 0), 100e-6),   // also nearest to fruit 0, but taken: unmatched within 0.2
+      FruitEstimate::ofBox(Eigen::Vector3d(1.0, 0.02, 0), 500e-6), // acc -0.5
+      FruitEstimate::ofBox(Eigen::Vector3d(2.0, 0.3, 0), 100e-6)}; // 30 cm away: no match
   const Evaluation e = evaluate(det, truth, 0.2);
   EXPECT_EQ(e.all.fruits, 2);
   EXPECT_NEAR(e.all.center_error_cm, 1.5, 1e-9);
@@ -175,7 +175,7 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   std::atomic<int> queries{0};
   std::thread reader([&] {
     while (!done) {
-      for (const auto& f : est.fruits()) EXPECT_TRUE(f.center.allFinite());
+      for (const auto& f : est.fruits()) EXPECT_TRUE(f.center().allFinite());
       est.extraTargets();
       ++queries;
     }

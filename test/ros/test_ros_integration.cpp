@@ -1,10 +1,10 @@
 #include <fruit_shape_completion/SuperellipsoidArray.h>
-#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/shape_estimator_loader.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/synthetic_fruit.h>
+#include <fruit_shape_completion/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <visualization_msgs/MarkerArray.h>

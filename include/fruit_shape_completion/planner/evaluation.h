@@ -24,7 +24,7 @@ struct Evaluation {
   SubsetStats all, ma0, ma50;
 };
 
-Evaluation evaluate(const std::vector<EstimatedFruit>& detected, const std::vector<TruthFruit>& truth,
+Evaluation evaluate(const std::vector<FruitEstimate>& detected, const std::vector<TruthFruit>& truth,
                     double max_distance = 0.2);
 
 }  // namespace planner

@@ -3,7 +3,7 @@
 // of the ROS layer wraps exactly this). After each inserted view the host hands every
 // estimator the view and lets it update; before sampling views it collects the estimators'
 // extra ROI targets (e.g. the predicted, unseen fruit surface).
-#include <fruit_shape_completion/types.h>
+#include <fruit_shape_completion/fruit_estimate.h>
 
 #include <Eigen/Geometry>
 #include <memory>
@@ -20,19 +20,14 @@ struct ViewData {
   double time = 0.0;              // [s] since the episode start
 };
 
-struct EstimatedFruit {
-  int id = -1;
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();
-  double volume = 0.0;  // [m^3]
-};
-
 class ShapeEstimator {
  public:
   virtual ~ShapeEstimator() = default;
   virtual std::string name() const = 0;
   virtual void insertView(const ViewData& view) = 0;
   virtual void update() = 0;
-  virtual std::vector<EstimatedFruit> fruits() const = 0;
+  // The accepted fruits (center() and volume are what the planner evaluates).
+  virtual std::vector<FruitEstimate> fruits() const = 0;
   virtual PointList extraTargets() const = 0;
   virtual void reset() = 0;
 };
@@ -46,7 +41,7 @@ class ShapeEstimatorHost {
   void onView(const ViewData& view);
   PointList extraTargets() const;
   // Fruits of estimator i; empty (and the estimator disabled) if it throws.
-  std::vector<EstimatedFruit> fruits(std::size_t i) const;
+  std::vector<FruitEstimate> fruits(std::size_t i) const;
   const std::vector<std::unique_ptr<ShapeEstimator>>& estimators() const { return estimators_; }
   bool enabled(std::size_t i) const { return i < enabled_.size() && enabled_[i]; }
   const std::vector<std::string>& errors() const { return errors_; }

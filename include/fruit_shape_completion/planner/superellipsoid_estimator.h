@@ -26,7 +26,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::string name() const override { return "superellipsoid"; }
   void insertView(const ViewData& view) override;
   void update() override;
-  std::vector<EstimatedFruit> fruits() const override;
+  std::vector<FruitEstimate> fruits() const override;
   PointList extraTargets() const override;
   void reset() override;
 

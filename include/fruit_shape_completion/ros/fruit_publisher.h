@@ -19,7 +19,7 @@ namespace ros_io {
 // An xyz (+ optional packed rgb) PointCloud2.
 sensor_msgs::PointCloud2 toCloud(const PointList& points, const std::string& frame, const ros::Time& stamp,
                                  const std::vector<std::array<std::uint8_t, 3>>& colors = {});
-// Finite points of an xyz PointCloud2 (any float32/float64 x, y, z fields); `non_finite` counts
+// Finite points of an xyz PointCloud2 (float32 x, y, z fields, as PCL and the upstream pipeline send); `non_finite` counts
 // the skipped ones. False with a message if the cloud has no x, y, z fields or is malformed.
 bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size_t* non_finite, std::string* error);
 

@@ -1,7 +1,7 @@
 #pragma once
 // The red colour thresholder that cuts fruit pixels out of a colour image (as the paper's
 // pipeline does before the TSDF map), and the clouds made from depth + mask.
-#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/analytic_depth_camera.h>
 
 #include <array>
 #include <cstdint>

@@ -3,7 +3,7 @@
 // camera (640x480, 80 degree horizontal field of view, 0.15-3 m by default), colour from the
 // material with simple shading, per-pixel ground-truth labels, and an optional depth noise
 // model of a structured-light sensor.
-#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/sim/scene.h>
 
 #include <cstdint>

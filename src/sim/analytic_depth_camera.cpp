@@ -1,4 +1,4 @@
-#include <fruit_shape_completion/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/analytic_depth_camera.h>
 
 #include <algorithm>
 #include <cmath>

@@ -1,10 +1,10 @@
-#include <fruit_shape_completion/synthetic_fruit.h>
+#include <fruit_shape_completion/sim/synthetic_fruit.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <unordered_set>
 
-#include <fruit_shape_completion/spatial_hash_grid.h>
+#include <fruit_shape_completion/grid_cell.h>
 
 namespace fruit_shape_completion {
 
@@ -85,13 +85,9 @@ PointList scanFruit(const SyntheticFruit& fruit, const ScanParams& params) {
     if ((p - fruit.center).normalized().dot(view) < min_dot) continue;
     Eigen::Vector3d q = p;
     if (params.voxel > 0.0) {
-      const Eigen::Vector3d idx = (p / params.voxel).array().floor();
-      if (!seen.insert(SpatialHashGrid::packKey(static_cast<std::int64_t>(idx.x()),
-                                                static_cast<std::int64_t>(idx.y()),
-                                                static_cast<std::int64_t>(idx.z())))
-               .second)
-        continue;
-      q = (idx.array() + 0.5) * params.voxel;
+      const GridCell cell = cellOf(p, 1.0 / params.voxel);
+      if (!seen.insert(packCellKey(cell)).second) continue;
+      q = (cell.cast<double>().array() + 0.5) * params.voxel;
     }
     if (params.noise_sigma > 0.0) q += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
     out.push_back(q);

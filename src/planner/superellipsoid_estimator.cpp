@@ -1,0 +1,64 @@
+#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+
+namespace fruit_shape_completion {
+namespace planner {
+
+SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)
+    : params_(params), map_(params.map), integrator_(params.integrator), pipeline_(params.pipeline) {}
+
+void SuperellipsoidEstimator::insertView(const ViewData& view) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_ = integrator_.integrate(map_, view.fruit_cloud, view.sensor_pose);
+  dirty_ = dirty_ || last_.rays > 0;
+}
+
+void SuperellipsoidEstimator::update() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!dirty_) return;
+  surface_ = extractSurfacePoints(map_, params_.surface);
+  pipeline_.update(surface_);
+  dirty_ = false;
+}
+
+std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<FruitEstimate> out;
+  for (const auto& f : pipeline_.fruits())
+    if (f.accepted) out.push_back(f);
+  return out;
+}
+
+PointList SuperellipsoidEstimator::extraTargets() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  PointList out;
+  if (!params_.publish_targets) return out;
+  for (const auto& f : pipeline_.fruits())
+    if (f.accepted) out.insert(out.end(), f.missing_surface.begin(), f.missing_surface.end());
+  return out;
+}
+
+void SuperellipsoidEstimator::reset() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  map_.clear();
+  pipeline_.reset();
+  surface_.clear();
+  dirty_ = false;
+}
+
+std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return pipeline_.fruits();
+}
+
+PointList SuperellipsoidEstimator::surface() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return surface_;
+}
+
+IntegrationReport SuperellipsoidEstimator::lastIntegration() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return last_;
+}
+
+}  // namespace planner
+}  // namespace fruit_shape_completion
