@@ -18,6 +18,10 @@ NeighbourGrid::NeighbourGrid(const PointList& points, double cell_size) : points
     order_.push_back(keyed[k].second);
     ++cells_[keyed[k].first].second;
   }
+  cell_list_.reserve(cells_.size());
+  for (std::size_t k = 0; k < keyed.size(); ++k)
+    if (k == 0 || keyed[k].first != keyed[k - 1].first)
+      cell_list_.emplace_back(cellOf(points[static_cast<std::size_t>(keyed[k].second)], inv_cell_), cells_[keyed[k].first]);
 }
 
 }  // namespace fruit_shape_completion

@@ -22,11 +22,10 @@ std::vector<char> findStatisticalOutliers(const PointList& points, const Outlier
   double sum = 0.0, sum2 = 0.0;
   std::size_t n = 0;
   const std::size_t k = static_cast<std::size_t>(params.k);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!points[i].allFinite()) continue;
+  grid.forEachPoint(params.search_radius, [&](int i, auto&& within) {
     d2.clear();
-    grid.forEachWithin(points[i], params.search_radius, [&](int j, double dd) {
-      if (static_cast<std::size_t>(j) != i) d2.push_back(dd);
+    within([&](int j, double dd) {
+      if (j != i) d2.push_back(dd);
     });
     double m = params.search_radius;
     if (d2.size() >= k) {
@@ -35,11 +34,11 @@ std::vector<char> findStatisticalOutliers(const PointList& points, const Outlier
       for (std::size_t j = 0; j < k; ++j) m += std::sqrt(d2[j]);
       m /= static_cast<double>(k);
     }
-    mean_knn[i] = m;
+    mean_knn[static_cast<std::size_t>(i)] = m;
     sum += m;
     sum2 += m * m;
     ++n;
-  }
+  });
   if (n < 2) return outlier;
   // As PCL: the sample standard deviation.
   const double mean = sum / static_cast<double>(n);

@@ -19,31 +19,32 @@ SurfaceNormals estimateNormals(const PointList& points, const NormalParams& para
   const std::size_t n = points.size();
   const std::size_t step =
       params.max_points > 0 ? std::max<std::size_t>(1, (n + params.max_points - 1) / params.max_points) : 1;
-  for (std::size_t i = 0; i < n; i += step) {
-    if (!points[i].allFinite()) continue;
+  grid.forEachPoint(params.radius, [&](int index, auto&& within) {
+    const std::size_t i = static_cast<std::size_t>(index);
+    if (i % step != 0) return;
     // Moments relative to the query point (numerically safe).
     int count = 0;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-    grid.forEachWithin(points[i], params.radius, [&](int j, double) {
+    within([&](int j, double) {
       const Eigen::Vector3d d = points[static_cast<std::size_t>(j)] - points[i];
       ++count;
       sum += d;
       outer.noalias() += d * d.transpose();
     });
-    if (count < params.min_neighbours) continue;
+    if (count < params.min_neighbours) return;
     const Eigen::Vector3d mean = sum / count;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
     es.computeDirect(outer - count * mean * mean.transpose());
     const Eigen::Vector3d ev = es.eigenvalues();  // ascending
-    if (!(ev(2) > 0.0) || ev(1) < params.min_planarity * ev(2)) continue;
+    if (!(ev(2) > 0.0) || ev(1) < params.min_planarity * ev(2)) return;
     Eigen::Vector3d normal = es.eigenvectors().col(0);
-    if (!normal.allFinite() || normal.norm() < 0.5) continue;
+    if (!normal.allFinite() || normal.norm() < 0.5) return;
     normal.normalize();
     if (normal.dot(inside - points[i]) < 0.0) normal = -normal;
     out.normals[i] = normal;
     ++out.valid;
-  }
+  });
   return out;
 }
 

@@ -62,8 +62,13 @@ static void BM_TsdfIntegrateFruitFrame(benchmark::State& state) {
   Eigen::Vector3d origin;
   for (int i = 0; i < 20; ++i) integ.integrate(map, view(scene, center, dirs[i], 0.4, &origin), origin);
   const PointList frame = view(scene, center, dirs[20], 0.4, &origin);
-  for (auto _ : state) benchmark::DoNotOptimize(integ.integrate(map, frame, origin).rays);
+  IntegrationReport r;
+  for (auto _ : state) r = integ.integrate(map, frame, origin);
   state.counters["points"] = static_cast<double>(frame.size());
+  state.counters["rays"] = static_cast<double>(r.rays);
+  state.counters["merge_ms"] = 1e3 * r.merge_seconds;
+  state.counters["neighbourhood_ms"] = 1e3 * r.neighbourhood_seconds;
+  state.counters["rays_ms"] = 1e3 * r.ray_seconds;
   state.counters["blocks"] = static_cast<double>(map.blockCount());
 }
 BENCHMARK(BM_TsdfIntegrateFruitFrame)->Unit(benchmark::kMillisecond);
