@@ -14,28 +14,8 @@ namespace fruit_shape_completion {
 
 class NeighbourGrid {
  public:
-  // Over the finite points of `points` (not copied: they must outlive the grid). A query
-  // radius up to `cell_size` looks at 27 cells at most.
+  // Over the finite points of `points` (not copied: they must outlive the grid).
   NeighbourGrid(const PointList& points, double cell_size);
-
-  // visit(index, squared distance) for each point within `radius` of p.
-  template <typename Visit>
-  void forEachWithin(const Point& p, double radius, Visit&& visit) const {
-    const GridCell lo = cellOf(p - Point::Constant(radius), inv_cell_);
-    const GridCell hi = cellOf(p + Point::Constant(radius), inv_cell_);
-    const double r2 = radius * radius;
-    for (auto x = lo.x(); x <= hi.x(); ++x)
-      for (auto y = lo.y(); y <= hi.y(); ++y)
-        for (auto z = lo.z(); z <= hi.z(); ++z) {
-          const auto it = cells_.find(packCellKey(GridCell(x, y, z)));
-          if (it == cells_.end()) continue;
-          for (int k = it->second.first; k < it->second.second; ++k) {
-            const int i = order_[static_cast<std::size_t>(k)];
-            const double d2 = (points_[static_cast<std::size_t>(i)] - p).squaredNorm();
-            if (d2 <= r2) visit(i, d2);
-          }
-        }
-  }
 
   // fn(i, within) for every finite point i, cell by cell; within(visit) calls visit(j, squared
   // distance) for each point j within `radius` (<= the cell size) of point i, i included. The

@@ -1,8 +1,8 @@
-#include "pcl_cloud.h"
-
 #include <fruit_shape_completion/cloud_io.h>
 
 #include <pcl/PCLPointCloud2.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/common/io.h>
 #include <pcl/io/ply_io.h>

@@ -1,15 +1,17 @@
-#include "pcl_cloud.h"
-
 #include <fruit_shape_completion/missing_surface.h>
 
 #include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
 
 namespace fruit_shape_completion {
 
 PointList predictMissingSurface(const Superellipsoid& shape, const PointList& observed,
                                 const MissingSurfaceParams& params) {
   PointList missing;
-  const PclCloud::Ptr cloud = toPclCloud(observed);
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const auto& p : observed)
+    if (p.allFinite()) cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
   pcl::KdTreeFLANN<pcl::PointXYZ> tree;
   if (!cloud->empty()) tree.setInputCloud(cloud);
   std::vector<int> nearest(1);

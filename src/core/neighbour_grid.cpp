@@ -12,16 +12,12 @@ NeighbourGrid::NeighbourGrid(const PointList& points, double cell_size) : points
   std::sort(keyed.begin(), keyed.end());
   order_.reserve(keyed.size());
   cells_.reserve(keyed.size() / 4 + 1);
-  for (std::size_t k = 0; k < keyed.size(); ++k) {
-    if (k == 0 || keyed[k].first != keyed[k - 1].first)
-      cells_.emplace(keyed[k].first, std::make_pair(static_cast<int>(k), static_cast<int>(k)));
-    order_.push_back(keyed[k].second);
-    ++cells_[keyed[k].first].second;
+  for (std::size_t begin = 0, end = 0; begin < keyed.size(); begin = end) {
+    while (end < keyed.size() && keyed[end].first == keyed[begin].first) order_.push_back(keyed[end++].second);
+    const std::pair<int, int> range(static_cast<int>(begin), static_cast<int>(end));
+    cells_.emplace(keyed[begin].first, range);
+    cell_list_.emplace_back(cellOf(points[static_cast<std::size_t>(keyed[begin].second)], inv_cell_), range);
   }
-  cell_list_.reserve(cells_.size());
-  for (std::size_t k = 0; k < keyed.size(); ++k)
-    if (k == 0 || keyed[k].first != keyed[k - 1].first)
-      cell_list_.emplace_back(cellOf(points[static_cast<std::size_t>(keyed[k].second)], inv_cell_), cells_[keyed[k].first]);
 }
 
 }  // namespace fruit_shape_completion
