@@ -37,7 +37,9 @@ struct PipelineStats {
   int fitted = 0;  // fits run this update (others reused)
   int splits = 0;  // clusters split into several fruits
   int accepted = 0;
-  double seconds = 0.0;
+  double seconds = 0.0;          // all of it; of which
+  double cluster_seconds = 0.0;  // Euclidean clustering
+  double fit_seconds = 0.0;      // the superellipsoid fits (centre prior and solver)
 };
 
 class FruitShapePipeline {

@@ -4,22 +4,25 @@
 #include <Eigen/Core>
 
 #include <algorithm>
-#include <cmath>
 #include <cstdint>
 
 namespace fruit_shape_completion {
 
 using GridCell = Eigen::Matrix<std::int64_t, 3, 1>;
 
-// The cell holding p; coordinates are clamped far beyond any key's range so no conversion
-// overflows (a NaN lands on a bound: callers skip non-finite points first).
+// floor(v) as an integer, clamped far beyond any key's range so no conversion overflows (a NaN
+// lands on a bound: callers skip non-finite points first). Without a libm call: baseline x86-64
+// has no rounding instruction, and this runs for every point of every view.
+inline std::int64_t floorToCell(double v) {
+  v = std::min(4.0e15, std::max(-4.0e15, v));
+  const auto c = static_cast<std::int64_t>(v);
+  return c - (static_cast<double>(c) > v ? 1 : 0);
+}
+
+// The cell holding p.
 inline GridCell cellOf(const Eigen::Vector3d& p, double inv_cell_size) {
-  GridCell c;
-  for (int k = 0; k < 3; ++k) {
-    const double v = std::floor(p[k] * inv_cell_size);
-    c[k] = static_cast<std::int64_t>(std::min(4.0e15, std::max(-4.0e15, std::isnan(v) ? 0.0 : v)));
-  }
-  return c;
+  return GridCell(floorToCell(p.x() * inv_cell_size), floorToCell(p.y() * inv_cell_size),
+                  floorToCell(p.z() * inv_cell_size));
 }
 
 // 21 bits per axis: unique for cells within +-2^20 of the origin (+-10 km at 1 cm).

@@ -2,7 +2,8 @@
 // A uniform grid over a point list for fixed-radius neighbour queries. Kept beside PCL's
 // kd-tree because the fruit surface is dense and the radii are a few voxels: a query reads the
 // few cells around it, several times faster than a kd-tree radius search
-// (docs/benchmarks.md), and clustering, normals and the outlier statistic run after every view.
+// (docs/benchmarks.md), and clustering, normals, the outlier statistic and the missing surface
+// run after every view.
 #include <fruit_shape_completion/grid_cell.h>
 #include <fruit_shape_completion/types.h>
 
@@ -14,43 +15,43 @@ namespace fruit_shape_completion {
 
 class NeighbourGrid {
  public:
-  // Over the finite points of `points` (not copied: they must outlive the grid).
+  // Over the finite points of `points` (copied in cell order, so a cell's points are adjacent
+  // in memory).
   NeighbourGrid(const PointList& points, double cell_size);
 
   // fn(i, within) for every finite point i, cell by cell; within(visit) calls visit(j, squared
-  // distance) for each point j within `radius` (<= the cell size) of point i, i included. The
-  // neighbour cells are looked up once per cell, not once per point.
+  // distance, point j) for each point j within `radius` (<= the cell size) of point i, i
+  // included. The neighbour cells are looked up once per cell, not once per point.
   template <typename Fn>
   void forEachPoint(double radius, Fn&& fn) const {
     const double r2 = radius * radius;
     std::vector<std::pair<int, int>> ranges;
     for (const auto& cell : cell_list_) {
-      ranges.clear();
-      for (std::int64_t dx = -1; dx <= 1; ++dx)
-        for (std::int64_t dy = -1; dy <= 1; ++dy)
-          for (std::int64_t dz = -1; dz <= 1; ++dz) {
-            const auto it = cells_.find(packCellKey(cell.first + GridCell(dx, dy, dz)));
-            if (it != cells_.end()) ranges.push_back(it->second);
-          }
+      neighbourRanges(cell.first, &ranges);
       for (int k = cell.second.first; k < cell.second.second; ++k) {
-        const int i = order_[static_cast<std::size_t>(k)];
-        const Point& p = points_[static_cast<std::size_t>(i)];
-        fn(i, [&](auto&& visit) {
+        const Point& p = sorted_[static_cast<std::size_t>(k)];
+        fn(order_[static_cast<std::size_t>(k)], [&](auto&& visit) {
           for (const auto& range : ranges)
             for (int m = range.first; m < range.second; ++m) {
-              const int j = order_[static_cast<std::size_t>(m)];
-              const double d2 = (points_[static_cast<std::size_t>(j)] - p).squaredNorm();
-              if (d2 <= r2) visit(j, d2);
+              const Point& q = sorted_[static_cast<std::size_t>(m)];
+              const double d2 = (q - p).squaredNorm();
+              if (d2 <= r2) visit(order_[static_cast<std::size_t>(m)], d2, q);
             }
         });
       }
     }
   }
 
+  // True if a point of the grid lies within `radius` (<= the cell size) of q.
+  bool anyWithin(const Point& q, double radius) const;
+
  private:
-  const PointList& points_;
+  // The ranges of the occupied cells among `cell` and its 26 neighbours.
+  void neighbourRanges(const GridCell& cell, std::vector<std::pair<int, int>>* ranges) const;
+
   double inv_cell_;
   std::vector<int> order_;  // point indices grouped by cell
+  PointList sorted_;        // the points in that order
   std::unordered_map<std::uint64_t, std::pair<int, int>> cells_;  // cell key -> range of order_
   std::vector<std::pair<GridCell, std::pair<int, int>>> cell_list_;  // the same cells, in key order
 };

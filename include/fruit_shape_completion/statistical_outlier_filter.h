@@ -20,4 +20,12 @@ struct OutlierFilterParams {
 // One flag per point: true for outliers (and for non-finite points).
 std::vector<char> findStatisticalOutliers(const PointList& points, const OutlierFilterParams& params);
 
+// The two steps, for a caller that gathers neighbourhoods itself (the TSDF integrator's one
+// pass for outliers and normals):
+// the statistic of one point from the squared distances `d2` to its neighbours within
+// search_radius, itself excluded (reordered in place);
+double meanNeighbourDistance(std::vector<double>* d2, const OutlierFilterParams& params);
+// the flags from all statistics (NaN: a point that has none, flagged).
+std::vector<char> flagOutliers(const std::vector<double>& statistic, const OutlierFilterParams& params);
+
 }  // namespace fruit_shape_completion

@@ -26,6 +26,21 @@ struct SurfaceNormals {
   int valid = 0;
 };
 
+// The moments of a point's neighbourhood (offsets from the point) and the PCA normal they give:
+// the one normal computation, also used by the TSDF integrator's neighbourhood pass.
+struct NeighbourMoments {
+  int count = 0;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  void add(const Eigen::Vector3d& offset) {
+    ++count;
+    sum += offset;
+    outer.noalias() += offset * offset.transpose();
+  }
+  // The unit normal, its sign arbitrary; NaN if the neighbourhood is too small or a line.
+  Eigen::Vector3d normal(const NormalParams& params) const;
+};
+
 // Normals are oriented toward `inside` (e.g. the cluster centroid: for a convex fruit shell
 // it lies on the inner side of every tangent plane).
 SurfaceNormals estimateNormals(const PointList& points, const NormalParams& params,

@@ -9,6 +9,7 @@
 #include <fruit_shape_completion/types.h>
 
 #include <cstdint>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <string>
@@ -39,10 +40,16 @@ struct TsdfMapParams {
 using VoxelIndex = GridCell;
 
 struct TsdfBlock {
-  TsdfBlock(const VoxelIndex& origin, int voxels_per_side);
+  TsdfBlock(const VoxelIndex& origin, int voxels_per_side);  // throws std::bad_alloc
   VoxelIndex origin;  // global index of the block's first voxel
   int side;
-  std::vector<TsdfVoxel> voxels;  // side^3, x fastest
+  // side^3, x fastest. From calloc, not a zero-filled vector: the OS maps zeroed pages on first
+  // touch, so a new block costs only the pages its fruit reaches, not 2 MiB of writes.
+  struct FreeDeleter {
+    void operator()(TsdfVoxel* p) const { std::free(p); }
+  };
+  std::unique_ptr<TsdfVoxel[], FreeDeleter> voxels;
+  std::size_t voxelCount() const { return static_cast<std::size_t>(side) * side * side; }
   // One bit per voxel, set once it has weight > 0: readers walk only the observed voxels.
   std::vector<std::uint64_t> observed_bits;
 

@@ -19,7 +19,7 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
   };
   const NeighbourGrid grid(points, params.tolerance);
   grid.forEachPoint(params.tolerance, [&](int i, auto&& within) {
-    within([&](int j, double) {
+    within([&](int j, double, const Point&) {
       if (j <= i) return;
       const int a = root(i), b = root(j);
       if (a != b) parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);

@@ -111,6 +111,7 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
   est.rms = fit.rms;
   est.iterations = fit.iterations;
   est.fit_seconds = fit.seconds;
+  stats_.fit_seconds += fit.seconds;
   est.volume = fit.shape.volume();
   if (est.accepted && params_.missing.samples > 0)
     est.missing_surface = predictMissingSurface(est.shape, points, params_.missing);
@@ -214,8 +215,10 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       ++stats_.non_finite_points;
   }
 
+  const auto cluster_start = std::chrono::steady_clock::now();
   const auto clusters = euclideanClusters(finite, params_.clustering);
   stats_.clusters = static_cast<int>(clusters.size());
+  stats_.cluster_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - cluster_start).count();
 
   std::vector<Track> next;      // fruits carried over unchanged
   std::vector<Track> pending;   // fruits fitted now, ids still to assign

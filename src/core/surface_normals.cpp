@@ -8,6 +8,19 @@
 
 namespace fruit_shape_completion {
 
+Eigen::Vector3d NeighbourMoments::normal(const NormalParams& params) const {
+  const Eigen::Vector3d none = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  if (count < params.min_neighbours) return none;
+  const Eigen::Vector3d mean = sum / count;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(outer - count * mean * mean.transpose());
+  const Eigen::Vector3d ev = es.eigenvalues();  // ascending
+  if (!(ev(2) > 0.0) || ev(1) < params.min_planarity * ev(2)) return none;
+  const Eigen::Vector3d normal = es.eigenvectors().col(0);
+  if (!normal.allFinite() || normal.norm() < 0.5) return none;
+  return normal.normalized();
+}
+
 // The PCA normal of pcl::NormalEstimation, over a NeighbourGrid (docs/benchmarks.md). That class
 // is not used as it is: it gives a normal to any neighbourhood of 3 points, a line included, and
 // the centre prior must not take the arbitrary normal of a line.
@@ -22,25 +35,10 @@ SurfaceNormals estimateNormals(const PointList& points, const NormalParams& para
   grid.forEachPoint(params.radius, [&](int index, auto&& within) {
     const std::size_t i = static_cast<std::size_t>(index);
     if (i % step != 0) return;
-    // Moments relative to the query point (numerically safe).
-    int count = 0;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-    within([&](int j, double) {
-      const Eigen::Vector3d d = points[static_cast<std::size_t>(j)] - points[i];
-      ++count;
-      sum += d;
-      outer.noalias() += d * d.transpose();
-    });
-    if (count < params.min_neighbours) return;
-    const Eigen::Vector3d mean = sum / count;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(outer - count * mean * mean.transpose());
-    const Eigen::Vector3d ev = es.eigenvalues();  // ascending
-    if (!(ev(2) > 0.0) || ev(1) < params.min_planarity * ev(2)) return;
-    Eigen::Vector3d normal = es.eigenvectors().col(0);
-    if (!normal.allFinite() || normal.norm() < 0.5) return;
-    normal.normalize();
+    NeighbourMoments m;  // relative to the point: numerically safe
+    within([&](int, double, const Point& q) { m.add(q - points[i]); });
+    Eigen::Vector3d normal = m.normal(params);
+    if (!normal.allFinite()) return;
     if (normal.dot(inside - points[i]) < 0.0) normal = -normal;
     out.normals[i] = normal;
     ++out.valid;

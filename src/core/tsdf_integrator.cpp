@@ -1,3 +1,4 @@
+#include <fruit_shape_completion/neighbour_grid.h>
 #include <fruit_shape_completion/surface_normals.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 
@@ -7,7 +8,6 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
-#include <unordered_map>
 
 namespace fruit_shape_completion {
 
@@ -16,6 +16,45 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// The slot of each voxel key of a view: open addressing with linear probing, sized once to at
+// least 1.5 times the points so it never grows. A full frame's table is larger than the caches;
+// the merge prefetches the slot of the point a few places ahead, which std::unordered_map's
+// node chains do not allow (docs/benchmarks.md).
+class VoxelSlots {
+ public:
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t(0);  // packCellKey uses 63 bits
+
+  explicit VoxelSlots(std::size_t max_entries) {
+    std::size_t capacity = 16;
+    while (2 * capacity < 3 * max_entries) capacity *= 2, --shift_;
+    mask_ = capacity - 1;
+    entries_.assign(capacity, Entry{kEmpty, 0});
+  }
+  void prefetch(std::uint64_t key) const { __builtin_prefetch(&entries_[home(key)]); }
+  // The slot stored for `key`, or `fresh` (then stored) if the key is new.
+  std::uint32_t findOrInsert(std::uint64_t key, std::uint32_t fresh) {
+    for (std::size_t i = home(key);; i = (i + 1) & mask_) {
+      Entry& e = entries_[i];
+      if (e.key == key) return e.slot;
+      if (e.key == kEmpty) {
+        e = Entry{key, fresh};
+        return fresh;
+      }
+    }
+  }
+
+ private:
+  // Fibonacci hashing: the top bits of the product depend on every bit of the key.
+  std::size_t home(std::uint64_t key) const { return (key * 0x9E3779B97F4A7C15ull) >> shift_; }
+  int shift_ = 60;  // 64 - log2(capacity)
+  std::size_t mask_ = 0;
+  struct Entry {
+    std::uint64_t key;
+    std::uint32_t slot;
+  };
+  std::vector<Entry> entries_;
+};
 
 // One ray per end-point voxel: the mean of the view's points in it, weighted by their count.
 struct MergedView {
@@ -29,12 +68,10 @@ MergedView mergePerVoxel(const PointList& points, const Eigen::Vector3d& origin,
   const double max_r2 = params.max_range * params.max_range;
   const Eigen::Isometry3d to_sensor = pose != nullptr ? pose->inverse() : Eigen::Isometry3d::Identity();
   const double inv_vs = 1.0 / voxel_size;
-  MergedView view;
-  std::unordered_map<std::uint64_t, std::size_t> slot;
-  slot.reserve(points.size() / 4 + 16);
-  std::uint64_t last_key = 0;
-  std::size_t last_slot = std::numeric_limits<std::size_t>::max();
-  for (const Point& p : points) {
+  // The key of every point first (kEmpty: dropped), so the merge can prefetch ahead.
+  std::vector<std::uint64_t> keys(points.size(), VoxelSlots::kEmpty);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Point& p = points[i];
     if (!p.allFinite()) {
       ++report->non_finite;
       continue;
@@ -44,22 +81,60 @@ MergedView mergePerVoxel(const PointList& points, const Eigen::Vector3d& origin,
       ++report->out_of_range;
       continue;
     }
+    keys[i] = packCellKey(cellOf(p, inv_vs));
+  }
+  MergedView view;
+  VoxelSlots slots(points.size());
+  constexpr std::size_t kAhead = 16;
+  std::uint64_t last_key = VoxelSlots::kEmpty;
+  std::uint32_t slot = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (i + kAhead < points.size() && keys[i + kAhead] != VoxelSlots::kEmpty) slots.prefetch(keys[i + kAhead]);
+    const std::uint64_t key = keys[i];
+    if (key == VoxelSlots::kEmpty) continue;
     // Clouds come in image order: neighbouring pixels often share a voxel.
-    const std::uint64_t key = packCellKey(cellOf(p, inv_vs));
-    if (key != last_key || last_slot == std::numeric_limits<std::size_t>::max()) {
-      const auto ins = slot.emplace(key, view.ends.size());
-      if (ins.second) {
+    if (key != last_key) {
+      slot = slots.findOrInsert(key, static_cast<std::uint32_t>(view.ends.size()));
+      if (slot == view.ends.size()) {
         view.ends.push_back(Eigen::Vector3d::Zero());
         view.counts.push_back(0.0);
       }
       last_key = key;
-      last_slot = ins.first->second;
     }
-    view.ends[last_slot] += p;
-    view.counts[last_slot] += 1.0;
+    view.ends[slot] += points[i];
+    view.counts[slot] += 1.0;
   }
   for (std::size_t i = 0; i < view.ends.size(); ++i) view.ends[i] /= view.counts[i];
   return view;
+}
+
+// One neighbourhood pass over the merged end points gives both the outlier flags and the
+// normals of the incidence-limited band (NaN where a point has none).
+void analyseNeighbourhoods(const PointList& ends, const TsdfIntegratorParams& params, double voxel_size,
+                           std::vector<char>* outlier, std::vector<Eigen::Vector3d>* normals) {
+  const bool find_outliers = params.remove_outliers && ends.size() > static_cast<std::size_t>(params.outliers.k);
+  const bool find_normals = params.incidence_limited_back_band;
+  if (!find_outliers && !find_normals) return;
+  NormalParams np;
+  np.radius = 2.5 * voxel_size;
+  const double outlier_r2 = params.outliers.search_radius * params.outliers.search_radius;
+  const double normal_r2 = np.radius * np.radius;
+  const double radius = std::max(find_outliers ? params.outliers.search_radius : 0.0, find_normals ? np.radius : 0.0);
+  std::vector<double> statistic(find_outliers ? ends.size() : 0, std::numeric_limits<double>::quiet_NaN()), d2;
+  if (find_normals) normals->assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  const NeighbourGrid grid(ends, radius);
+  grid.forEachPoint(radius, [&](int i, auto&& within) {
+    const Point& p = ends[static_cast<std::size_t>(i)];
+    NeighbourMoments moments;
+    d2.clear();
+    within([&](int j, double dd, const Point& q) {
+      if (find_outliers && j != i && dd <= outlier_r2) d2.push_back(dd);
+      if (find_normals && dd <= normal_r2) moments.add(q - p);
+    });
+    if (find_outliers) statistic[static_cast<std::size_t>(i)] = meanNeighbourDistance(&d2, params.outliers);
+    if (find_normals) (*normals)[static_cast<std::size_t>(i)] = moments.normal(np);
+  });
+  if (find_outliers) *outlier = flagOutliers(statistic, params.outliers);
 }
 
 // Casts rays into the map: each updates the voxels it crosses within its band (from `tau`
@@ -72,7 +147,7 @@ class BandCaster {
  public:
   BandCaster(TsdfMap& map, const TsdfIntegratorParams& params, double tau)
       : map_(map), params_(params), tau_(tau), vs_(map.voxelSize()), inv_vs_(1.0 / map.voxelSize()),
-        side_(map.voxelsPerSide()) {}
+        inv_drop_len_(1.0 / (tau - map.voxelSize())), side_(map.voxelsPerSide()) {}
   ~BandCaster() { flush(); }
 
   std::size_t voxel_updates = 0;
@@ -96,67 +171,82 @@ class BandCaster {
   }
   // The weight of an update at signed distance sdf (0: none).
   double weightAt(double sdf, double ray_weight) const {
-    if (params_.drop_off && sdf < -vs_) return ray_weight * (tau_ + sdf) / (tau_ - vs_);
+    if (params_.drop_off && sdf < -vs_) return ray_weight * (tau_ + sdf) * inv_drop_len_;
     return ray_weight;
+  }
+  // Queues the update of voxel (x, y, z) of `block` (block-local); false if it is dropped.
+  bool queue(TsdfBlock* block, int x, int y, int z, double sdf, double weight) {
+    if (block == nullptr) return false;
+    if (map_.params().use_crop_box && !map_.insideCropBox(map_.voxelCenter(block->origin + VoxelIndex(x, y, z))))
+      return false;
+    const std::uint32_t idx = block->indexOf(x, y, z);
+    __builtin_prefetch(&block->voxels[idx], 1);
+    queue_.push_back({block, idx, std::min(static_cast<float>(sdf), static_cast<float>(tau_)), weight});
+    ++voxel_updates;
+    return true;
   }
 
   TsdfMap& map_;
   const TsdfIntegratorParams& params_;
-  const double tau_, vs_, inv_vs_;
+  const double tau_, vs_, inv_vs_, inv_drop_len_;
   const int side_;
   std::vector<QueuedUpdate> queue_;
 };
 
 bool BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                       double range, double weight, double back_len) {
-  // Amanatides-Woo traversal from a to b in voxel units; the block is looked up only when the
-  // ray crosses into the next one.
+  // Amanatides-Woo traversal from a to b in voxel units, in block-local coordinates; the block
+  // is looked up only when the ray crosses into the next one. The loop carries scalars only:
+  // per-axis arrays indexed by the step axis would go through the stack at every step.
   const Eigen::Vector3d start = params_.carve_free_space ? origin : Eigen::Vector3d(p - dir * std::min(tau_, range));
-  const Eigen::Vector3d a = start * inv_vs_, b = (p + dir * back_len) * inv_vs_;
-  const Eigen::Vector3d d = b - a;
-  const VoxelIndex first = cellOf(start, inv_vs_), last = cellOf(p + dir * back_len, inv_vs_);
-  Eigen::Vector3i step;
-  Eigen::Vector3d t_max, t_delta;
-  for (int k = 0; k < 3; ++k) {
-    step[k] = d[k] > 0 ? 1 : (d[k] < 0 ? -1 : 0);
-    if (step[k] == 0) {
-      t_max[k] = t_delta[k] = std::numeric_limits<double>::infinity();
-    } else {
-      t_max[k] = (static_cast<double>(first[k] + (step[k] > 0 ? 1 : 0)) - a[k]) / d[k];
-      t_delta[k] = std::abs(1.0 / d[k]);
+  const Eigen::Vector3d end = p + dir * back_len;
+  const Eigen::Vector3d a = start * inv_vs_, d = end * inv_vs_ - a;
+  const VoxelIndex first = cellOf(start, inv_vs_), last = cellOf(end, inv_vs_);
+  const double inf = std::numeric_limits<double>::infinity();
+  auto setup = [&](int k, int& step, double& t_max, double& t_delta) {
+    step = d[k] > 0 ? 1 : (d[k] < 0 ? -1 : 0);
+    t_max = t_delta = inf;
+    if (step != 0) {
+      t_max = (static_cast<double>(first[k] + (step > 0 ? 1 : 0)) - a[k]) / d[k];
+      t_delta = std::abs(1.0 / d[k]);
     }
-  }
-  VoxelIndex voxel = first;
-  VoxelIndex block_origin = map_.blockOriginOf(voxel);
+  };
+  int sx, sy, sz;
+  double tx, ty, tz, dtx, dty, dtz;
+  setup(0, sx, tx, dtx);
+  setup(1, sy, ty, dty);
+  setup(2, sz, tz, dtz);
+  VoxelIndex block_origin = map_.blockOriginOf(first);
   TsdfBlock* block = map_.blockForUpdate(block_origin);
+  int x = static_cast<int>(first.x() - block_origin.x());
+  int y = static_cast<int>(first.y() - block_origin.y());
+  int z = static_cast<int>(first.z() - block_origin.z());
   double sdf = range - (map_.voxelCenter(first) - origin).dot(dir);  // projective distance
+  const double dsx = sx * vs_ * dir.x(), dsy = sy * vs_ * dir.y(), dsz = sz * vs_ * dir.z();
   const std::int64_t steps = (last - first).cwiseAbs().sum();
-  const float sdf_max = static_cast<float>(tau_);
   bool dropped = false;
   for (std::int64_t n = 0;; ++n) {
     const double w = sdf >= -back_len ? weightAt(sdf, weight) : 0.0;
-    if (w > 0.0) {
-      if (block == nullptr || (map_.params().use_crop_box && !map_.insideCropBox(map_.voxelCenter(voxel)))) {
-        dropped = true;
-      } else {
-        const VoxelIndex l = voxel - block_origin;
-        const std::uint32_t idx = block->indexOf(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()));
-        __builtin_prefetch(&block->voxels[idx], 1);
-        queue_.push_back({block, idx, std::min(static_cast<float>(sdf), sdf_max), w});
-        ++voxel_updates;
-      }
-    }
+    if (w > 0.0 && !queue(block, x, y, z, sdf, w)) dropped = true;
     if (n == steps) break;
-    int k;  // the axis whose boundary comes first
-    t_max.minCoeff(&k);
-    if (t_max[k] > 1.0) break;
-    t_max[k] += t_delta[k];
-    voxel[k] += step[k];
-    sdf -= step[k] * vs_ * dir[k];
-    const VoxelIndex l = voxel - block_origin;
-    if (l[k] < 0 || l[k] >= side_) {
+    int* moved;  // the axis whose boundary comes first (ties: x, then y, then z)
+    if (tx <= ty && tx <= tz) {
+      if (tx > 1.0) break;
+      tx += dtx, sdf -= dsx, x += sx, moved = &x;
+    } else if (ty <= tz) {
+      if (ty > 1.0) break;
+      ty += dty, sdf -= dsy, y += sy, moved = &y;
+    } else {
+      if (tz > 1.0) break;
+      tz += dtz, sdf -= dsz, z += sz, moved = &z;
+    }
+    if (static_cast<unsigned>(*moved) >= static_cast<unsigned>(side_)) {
+      const VoxelIndex voxel = block_origin + VoxelIndex(x, y, z);
       block_origin = map_.blockOriginOf(voxel);
       block = map_.blockForUpdate(block_origin);
+      x = static_cast<int>(voxel.x() - block_origin.x());
+      y = static_cast<int>(voxel.y() - block_origin.y());
+      z = static_cast<int>(voxel.z() - block_origin.z());
     }
   }
   if (queue_.size() >= kFlushAt) flush();
@@ -214,17 +304,9 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
 
   const auto neighbourhood_start = Clock::now();
   std::vector<char> outlier(view.ends.size(), 0);
-  if (params_.remove_outliers && view.ends.size() > static_cast<std::size_t>(params_.outliers.k)) {
-    outlier = findStatisticalOutliers(view.ends, params_.outliers);
-    report.outliers = static_cast<std::size_t>(std::count(outlier.begin(), outlier.end(), 1));
-  }
   std::vector<Eigen::Vector3d> normals;
-  if (params_.incidence_limited_back_band) {
-    NormalParams np;
-    np.radius = 2.5 * vs;
-    np.max_points = 0;
-    normals = estimateNormals(view.ends, np, origin).normals;
-  }
+  analyseNeighbourhoods(view.ends, params_, vs, &outlier, &normals);
+  report.outliers = static_cast<std::size_t>(std::count(outlier.begin(), outlier.end(), 1));
   report.neighbourhood_seconds = secondsSince(neighbourhood_start);
 
   const auto ray_start = Clock::now();

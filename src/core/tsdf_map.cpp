@@ -42,8 +42,11 @@ bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
 TsdfBlock::TsdfBlock(const VoxelIndex& o, int n)
     : origin(o),
       side(n),
-      voxels(static_cast<std::size_t>(n) * n * n),
-      observed_bits((static_cast<std::size_t>(n) * n * n + 63) / 64, 0) {}
+      voxels(static_cast<TsdfVoxel*>(std::calloc(static_cast<std::size_t>(n) * n * n, sizeof(TsdfVoxel)))),
+      observed_bits((static_cast<std::size_t>(n) * n * n + 63) / 64, 0) {
+  // All-zero bytes are a voxel never observed (distance 0, weight 0).
+  if (!voxels) throw std::bad_alloc();
+}
 
 std::size_t TsdfBlock::observedCount() const {
   std::size_t n = 0;

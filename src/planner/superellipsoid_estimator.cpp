@@ -1,5 +1,7 @@
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 
+#include <chrono>
+
 namespace fruit_shape_completion {
 namespace planner {
 
@@ -15,7 +17,9 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
 void SuperellipsoidEstimator::update() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!dirty_) return;
+  const auto start = std::chrono::steady_clock::now();
   surface_ = extractSurfacePoints(map_, params_.surface);
+  surface_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   pipeline_.update(surface_);
   dirty_ = false;
 }
@@ -58,6 +62,16 @@ PointList SuperellipsoidEstimator::surface() const {
 IntegrationReport SuperellipsoidEstimator::lastIntegration() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return last_;
+}
+
+PipelineStats SuperellipsoidEstimator::lastPipelineStats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return pipeline_.lastStats();
+}
+
+double SuperellipsoidEstimator::lastSurfaceSeconds() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return surface_seconds_;
 }
 
 }  // namespace planner

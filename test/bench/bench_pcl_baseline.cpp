@@ -2,16 +2,19 @@
 // surface as BM_FiftyFruit*: the evidence for keeping the grid (docs/benchmarks.md).
 // Run: scripts/run.sh bench --benchmark_filter=FiftyFruit
 #include <benchmark/benchmark.h>
+#include <fruit_shape_completion/missing_surface.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 
 #include <pcl/features/normal_3d_omp.h>
 #include <pcl/filters/statistical_outlier_removal.h>
+#include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/search/kdtree.h>
 #include <pcl/segmentation/extract_clusters.h>
 
 using namespace fruit_shape_completion;
 
 const TsdfMap& fiftyFruitMap();  // bench_tsdf.cpp
+const std::vector<std::pair<PointList, Superellipsoid>>& fiftyFruitShapes();
 
 namespace {
 pcl::PointCloud<pcl::PointXYZ>::Ptr surfaceCloud() {
@@ -72,3 +75,30 @@ static void BM_FiftyFruitNormalsPcl(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(cloud->size());
 }
 BENCHMARK(BM_FiftyFruitNormalsPcl)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+
+// The missing-surface test with a kd-tree per fruit (nearest neighbour of each sample).
+static void BM_FiftyFruitMissingSurfacePcl(benchmark::State& state) {
+  const auto& shapes = fiftyFruitShapes();
+  const MissingSurfaceParams params;
+  const float t2 = static_cast<float>(params.threshold * params.threshold);
+  std::size_t missing = 0;
+  for (auto _ : state) {
+    missing = 0;
+    for (const auto& s : shapes) {
+      pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+      for (const auto& p : s.first)
+        cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+      pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+      tree.setInputCloud(cloud);
+      pcl::Indices nearest(1);
+      std::vector<float> d2(1);
+      for (const auto& q : s.second.sampleSurface(params.samples)) {
+        const pcl::PointXYZ p(static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()));
+        if (tree.nearestKSearch(p, 1, nearest, d2) < 1 || d2[0] > t2) ++missing;
+      }
+    }
+  }
+  state.counters["fruits"] = static_cast<double>(shapes.size());
+  state.counters["missing"] = static_cast<double>(missing);
+}
+BENCHMARK(BM_FiftyFruitMissingSurfacePcl)->Unit(benchmark::kMillisecond);

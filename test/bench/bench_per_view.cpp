@@ -81,8 +81,8 @@ static void BM_PerViewUpdate(benchmark::State& state) {
     return;
   }
   std::vector<double> per_view_ms;
-  double integrate_s = 0, neighbourhood_s = 0;
-  std::size_t fruits = 0, targets = 0;
+  double integrate_s = 0, merge_s = 0, neighbourhood_s = 0, rays_s = 0, surface_s = 0, cluster_s = 0, fit_s = 0;
+  std::size_t fruits = 0, targets = 0, fits = 0, points = 0;
   const PointList none;
   for (auto _ : state) {
     planner::SuperellipsoidEstimator estimator;
@@ -90,8 +90,16 @@ static void BM_PerViewUpdate(benchmark::State& state) {
       const auto t0 = std::chrono::steady_clock::now();
       estimator.insertView({v.fruit, none, v.pose, 0.0});
       integrate_s += estimator.lastIntegration().seconds;
+      merge_s += estimator.lastIntegration().merge_seconds;
       neighbourhood_s += estimator.lastIntegration().neighbourhood_seconds;
+      rays_s += estimator.lastIntegration().ray_seconds;
+      points += estimator.lastIntegration().points_in;
       estimator.update();
+      const PipelineStats stats = estimator.lastPipelineStats();
+      surface_s += estimator.lastSurfaceSeconds();
+      cluster_s += stats.cluster_seconds;
+      fit_s += stats.fit_seconds;
+      fits += static_cast<std::size_t>(stats.fitted);
       const PointList extra = estimator.extraTargets();
       const auto t1 = std::chrono::steady_clock::now();
       per_view_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
@@ -105,7 +113,16 @@ static void BM_PerViewUpdate(benchmark::State& state) {
   state.counters["max_ms"] = *std::max_element(per_view_ms.begin(), per_view_ms.end());
   // Of which the TSDF integration, and its outlier filter and normals (mean per view).
   state.counters["integrate_ms"] = 1e3 * integrate_s / static_cast<double>(per_view_ms.size());
+  state.counters["merge_ms"] = 1e3 * merge_s / static_cast<double>(per_view_ms.size());
   state.counters["neighbourhood_ms"] = 1e3 * neighbourhood_s / static_cast<double>(per_view_ms.size());
+  state.counters["rays_ms"] = 1e3 * rays_s / static_cast<double>(per_view_ms.size());
+  state.counters["points"] = static_cast<double>(points) / static_cast<double>(per_view_ms.size());
+  // The rest of the update (mean per view), and the fits run per episode: a change of workload
+  // (more refits) shows here, not as a slower fit.
+  state.counters["surface_ms"] = 1e3 * surface_s / static_cast<double>(per_view_ms.size());
+  state.counters["cluster_ms"] = 1e3 * cluster_s / static_cast<double>(per_view_ms.size());
+  state.counters["fit_ms"] = 1e3 * fit_s / static_cast<double>(per_view_ms.size());
+  state.counters["fits"] = static_cast<double>(fits) / static_cast<double>(state.iterations());
   state.counters["fruits"] = static_cast<double>(fruits);
   state.counters["targets"] = static_cast<double>(targets);
   state.SetLabel(rec.scene);

@@ -2,6 +2,7 @@
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/euclidean_clustering.h>
+#include <fruit_shape_completion/missing_surface.h>
 #include <fruit_shape_completion/statistical_outlier_filter.h>
 #include <fruit_shape_completion/surface_normals.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
@@ -187,3 +188,43 @@ static void BM_FiftyFruitNormals(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(surface.size());
 }
 BENCHMARK(BM_FiftyFruitNormals)->Unit(benchmark::kMillisecond);
+
+// The fruits of the 50-fruit map, each half seen (its points on one side of its centroid), and
+// a sphere of its size at its centroid (the shape the missing-surface test samples).
+const std::vector<std::pair<PointList, Superellipsoid>>& fiftyFruitShapes() {
+  static const auto shapes = [] {
+    std::vector<std::pair<PointList, Superellipsoid>> out;
+    const PointList surface = extractSurfacePoints(fiftyFruitMap());
+    for (const auto& cluster : euclideanClusters(surface, ClusteringParams())) {
+      PointList pts;
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int i : cluster) {
+        pts.push_back(surface[static_cast<std::size_t>(i)]);
+        mean += pts.back();
+      }
+      mean /= static_cast<double>(pts.size());
+      double r = 0.0;
+      PointList half;
+      for (const auto& p : pts) {
+        r += (p - mean).norm();
+        if (p.x() > mean.x()) half.push_back(p);
+      }
+      out.emplace_back(half, Superellipsoid::sphere(r / static_cast<double>(pts.size()), mean));
+    }
+    return out;
+  }();
+  return shapes;
+}
+
+// The missing surface of every fruit, its index built afresh as after a refit.
+static void BM_FiftyFruitMissingSurface(benchmark::State& state) {
+  const auto& shapes = fiftyFruitShapes();
+  std::size_t missing = 0;
+  for (auto _ : state) {
+    missing = 0;
+    for (const auto& s : shapes) missing += predictMissingSurface(s.second, s.first, MissingSurfaceParams()).size();
+  }
+  state.counters["fruits"] = static_cast<double>(shapes.size());
+  state.counters["missing"] = static_cast<double>(missing);
+}
+BENCHMARK(BM_FiftyFruitMissingSurface)->Unit(benchmark::kMillisecond);

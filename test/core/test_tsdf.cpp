@@ -82,9 +82,9 @@ void expectSameMap(const TsdfMap& a, const TsdfMap& b) {
 void expectObservedExactlyWhereWeighted(const TsdfMap& map) {
   std::size_t mismatches = 0, observed = 0;
   map.forEachBlock([&](const TsdfBlock& block) {
-    std::vector<char> listed(block.voxels.size(), 0);
+    std::vector<char> listed(block.voxelCount(), 0);
     block.forEachObserved([&](std::uint32_t idx) { listed[idx] = 1; });
-    for (std::uint32_t idx = 0; idx < block.voxels.size(); ++idx) {
+    for (std::uint32_t idx = 0; idx < block.voxelCount(); ++idx) {
       observed += listed[idx];
       mismatches += (block.voxels[idx].weight > 0.0f) != (listed[idx] != 0);
     }

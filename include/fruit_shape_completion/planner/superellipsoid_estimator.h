@@ -34,6 +34,8 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::vector<FruitEstimate> estimates() const;
   PointList surface() const;
   IntegrationReport lastIntegration() const;
+  PipelineStats lastPipelineStats() const;
+  double lastSurfaceSeconds() const;  // surface extraction of the last update
 
  private:
   SuperellipsoidEstimatorParams params_;
@@ -43,6 +45,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   FruitShapePipeline pipeline_;
   PointList surface_;
   IntegrationReport last_;
+  double surface_seconds_ = 0.0;
   bool dirty_ = false;
 };
 
