@@ -40,7 +40,8 @@ struct IntegrationReport {
   std::size_t points_in = 0;
   std::size_t non_finite = 0;
   std::size_t out_of_range = 0;  // closer than min_range, farther than max_range, or behind the sensor
-  std::size_t outside_map = 0;   // outside the crop box, or needing more than max_blocks
+  std::size_t outside_map = 0;   // rays partly outside the crop box or the map's key range
+  std::size_t over_budget = 0;   // rays partly dropped: new blocks needed beyond the memory budget
   std::size_t outliers = 0;      // merged points removed by the outlier filter
   std::size_t rays = 0;
   std::size_t voxel_updates = 0;

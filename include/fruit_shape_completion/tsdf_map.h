@@ -25,9 +25,12 @@ struct TsdfVoxel {
 struct TsdfMapParams {
   double voxel_size = 0.004;  // [m]
   int voxels_per_side = 64;   // per block
-  // Blocks are never created beyond this many; points that would need more are dropped and
-  // counted. 1024 blocks of 64^3 voxels are 2 GiB.
-  int max_blocks = 1024;
+  // Memory the map's blocks may reserve [MiB]; a block is 2 MiB at 64 voxels a side. At the
+  // budget no block is created: the blocks held keep updating, the parts of views that need new
+  // ones are dropped, counted and reported (IntegrationReport::over_budget).
+  double memory_budget_mb = 2048.0;
+  std::size_t blockBytes() const;  // reserved by one block
+  std::size_t maxBlocks() const;   // the blocks the budget holds
   // Optional crop box (map frame): nothing outside it is stored.
   bool use_crop_box = false;
   Eigen::Vector3d crop_min = Eigen::Vector3d::Constant(-1e9);
@@ -95,13 +98,14 @@ class TsdfMap {
   const TsdfVoxel* voxel(const VoxelIndex& v) const;
   // The global index of the first voxel of the block holding voxel v.
   VoxelIndex blockOriginOf(const VoxelIndex& v) const;
-  // The block with that origin, created if needed; nullptr if max_blocks, the key range or the
+  // The block with that origin, created if needed; nullptr if the memory budget, the key range or the
   // crop box (the block lies wholly outside it) forbid it.
   TsdfBlock* blockForUpdate(const VoxelIndex& block_origin);
   // Sets a voxel (used by load); false if its block cannot be created.
   bool setVoxel(const VoxelIndex& v, const TsdfVoxel& value);
 
   std::size_t blockCount() const { return blocks_.size(); }
+  bool atBudget() const { return blocks_.size() >= max_blocks_; }
   std::size_t blockVoxels() const {
     const std::size_t n = params_.voxels_per_side;
     return n * n * n;
@@ -124,6 +128,7 @@ class TsdfMap {
   bool blockInRange(const VoxelIndex& block_origin) const;
 
   TsdfMapParams params_;
+  std::size_t max_blocks_;
   std::map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;
   // Rays touch the same block many times in a row: the last block updated is kept.
   VoxelIndex cached_origin_ = VoxelIndex::Zero();

@@ -152,8 +152,9 @@ class BandCaster {
 
   std::size_t voxel_updates = 0;
 
-  // True if part of the ray's band was dropped (outside the crop box or the block limit).
-  bool cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range,
+  // Why part of a ray's band was dropped (a bitmask; 0: nothing was).
+  enum Dropped : unsigned { kOutside = 1, kOverBudget = 2 };
+  unsigned cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range,
             double weight, double back_len);
 
  private:
@@ -174,16 +175,16 @@ class BandCaster {
     if (params_.drop_off && sdf < -vs_) return ray_weight * (tau_ + sdf) * inv_drop_len_;
     return ray_weight;
   }
-  // Queues the update of voxel (x, y, z) of `block` (block-local); false if it is dropped.
-  bool queue(TsdfBlock* block, int x, int y, int z, double sdf, double weight) {
-    if (block == nullptr) return false;
+  // Queues the update of voxel (x, y, z) of `block` (block-local); 0, or why it is dropped.
+  unsigned queue(TsdfBlock* block, int x, int y, int z, double sdf, double weight) {
+    if (block == nullptr) return map_.atBudget() ? kOverBudget : kOutside;
     if (map_.params().use_crop_box && !map_.insideCropBox(map_.voxelCenter(block->origin + VoxelIndex(x, y, z))))
-      return false;
+      return kOutside;
     const std::uint32_t idx = block->indexOf(x, y, z);
     __builtin_prefetch(&block->voxels[idx], 1);
     queue_.push_back({block, idx, std::min(static_cast<float>(sdf), static_cast<float>(tau_)), weight});
     ++voxel_updates;
-    return true;
+    return 0;
   }
 
   TsdfMap& map_;
@@ -193,7 +194,7 @@ class BandCaster {
   std::vector<QueuedUpdate> queue_;
 };
 
-bool BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+unsigned BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                       double range, double weight, double back_len) {
   // Amanatides-Woo traversal from a to b in voxel units, in block-local coordinates; the block
   // is looked up only when the ray crosses into the next one. The loop carries scalars only:
@@ -224,10 +225,10 @@ bool BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origin, c
   double sdf = range - (map_.voxelCenter(first) - origin).dot(dir);  // projective distance
   const double dsx = sx * vs_ * dir.x(), dsy = sy * vs_ * dir.y(), dsz = sz * vs_ * dir.z();
   const std::int64_t steps = (last - first).cwiseAbs().sum();
-  bool dropped = false;
+  unsigned dropped = 0;
   for (std::int64_t n = 0;; ++n) {
     const double w = sdf >= -back_len ? weightAt(sdf, weight) : 0.0;
-    if (w > 0.0 && !queue(block, x, y, z, sdf, w)) dropped = true;
+    if (w > 0.0) dropped |= queue(block, x, y, z, sdf, w);
     if (n == steps) break;
     int* moved;  // the axis whose boundary comes first (ties: x, then y, then z)
     if (tx <= ty && tx <= tz) {
@@ -325,7 +326,9 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
       double weight = view.counts[i];
       if (params_.weighting == TsdfIntegratorParams::Weighting::kInverseSquare) weight /= range * range;
       ++report.rays;
-      if (caster.cast(p, origin, dir, range, weight, back_len)) ++report.outside_map;
+      const unsigned dropped = caster.cast(p, origin, dir, range, weight, back_len);
+      if (dropped & BandCaster::kOutside) ++report.outside_map;
+      if (dropped & BandCaster::kOverBudget) ++report.over_budget;
     }
     report.voxel_updates = caster.voxel_updates;
   }
@@ -334,7 +337,10 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   std::ostringstream warn;
   if (report.non_finite) warn << report.non_finite << " NaN/Inf points skipped; ";
   if (report.out_of_range) warn << report.out_of_range << " points outside the range limits skipped; ";
-  if (report.outside_map) warn << report.outside_map << " rays partly outside the crop box or the block limit; ";
+  if (report.outside_map) warn << report.outside_map << " rays partly outside the crop box or the map's range; ";
+  if (report.over_budget)
+    warn << report.over_budget << " rays partly dropped: the map is at its memory budget (" << map.blockCount()
+         << " blocks, memory_budget_mb " << map.params().memory_budget_mb << "); ";
   report.warning = warn.str();
   if (!report.warning.empty()) report.warning.resize(report.warning.size() - 2);
   report.seconds = secondsSince(start);

@@ -27,12 +27,30 @@ void TsdfMapParams::validate() const {
     throw std::invalid_argument("tsdf voxel_size must be in [0.0001, 10] m");
   if (voxels_per_side < 1 || voxels_per_side > 512)
     throw std::invalid_argument("tsdf voxels_per_side must be in 1..512");
-  if (max_blocks < 1) throw std::invalid_argument("tsdf max_blocks must be >= 1");
+  if (!(memory_budget_mb > 0.0) || !std::isfinite(memory_budget_mb) || maxBlocks() < 1) {
+    std::ostringstream os;
+    os << "tsdf memory_budget_mb (" << memory_budget_mb << ") must hold at least one block of "
+       << static_cast<double>(blockBytes()) / 1048576.0 << " MiB";
+    throw std::invalid_argument(os.str());
+  }
   if (use_crop_box && !(crop_min.array() < crop_max.array()).all())
     throw std::invalid_argument("tsdf crop box must have crop_min < crop_max on every axis");
 }
 
-TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params) { params_.validate(); }
+std::size_t TsdfMapParams::blockBytes() const {
+  const std::size_t n = static_cast<std::size_t>(std::max(1, voxels_per_side));
+  return sizeof(TsdfBlock) + n * n * n * sizeof(TsdfVoxel) + (n * n * n + 63) / 64 * 8;
+}
+
+std::size_t TsdfMapParams::maxBlocks() const {
+  if (!(memory_budget_mb > 0.0) || !std::isfinite(memory_budget_mb)) return 0;
+  return static_cast<std::size_t>(std::min(1e12, memory_budget_mb * 1048576.0 / static_cast<double>(blockBytes())));
+}
+
+TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params) {
+  params_.validate();
+  max_blocks_ = params_.maxBlocks();
+}
 
 bool TsdfMap::insideCropBox(const Eigen::Vector3d& p) const {
   return !params_.use_crop_box ||
@@ -85,7 +103,7 @@ TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
   const std::uint64_t key = blockKeyOf(origin);
   auto it = blocks_.find(key);
   if (it == blocks_.end()) {
-    if (static_cast<int>(blocks_.size()) >= params_.max_blocks) return nullptr;
+    if (atBudget()) return nullptr;
     if (params_.use_crop_box) {
       const double vs = params_.voxel_size;
       const Eigen::Vector3d lo = origin.cast<double>() * vs;
@@ -188,8 +206,9 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
   } catch (const std::exception& e) {
     return fail(std::string("bad header: ") + e.what());
   }
-  if (count > static_cast<std::uint64_t>(p.max_blocks))
-    return fail("file holds more blocks than max_blocks allows");
+  if (count > static_cast<std::uint64_t>(p.maxBlocks()))
+    return fail("file holds " + std::to_string(count) + " blocks, more than memory_budget_mb allows (" +
+                std::to_string(p.maxBlocks()) + ")");
   try {
     TsdfMap loaded(p);
     const std::uint64_t voxels = static_cast<std::uint64_t>(vps) * vps * vps;

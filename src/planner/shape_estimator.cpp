@@ -1,30 +1,71 @@
 #include <fruit_shape_completion/planner/shape_estimator.h>
 
 #include <iostream>
+#include <stdexcept>
 
 namespace fruit_shape_completion {
 namespace planner {
 
+ShapeEstimatorHost::ShapeEstimatorHost(Reporter report_error) : report_error_(std::move(report_error)) {
+  if (!report_error_) report_error_ = [](const std::string& msg) { std::cerr << msg << "\n"; };
+}
+
 void ShapeEstimatorHost::add(std::unique_ptr<ShapeEstimator> estimator) {
   if (!estimator) return;
+  std::lock_guard<std::mutex> lock(mutex_);
   estimators_.push_back(std::move(estimator));
   enabled_.push_back(1);
 }
 
+std::size_t ShapeEstimatorHost::size() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return estimators_.size();
+}
+
+ShapeEstimator& ShapeEstimatorHost::estimator(std::size_t i) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (i >= estimators_.size()) throw std::out_of_range("no shape estimator " + std::to_string(i));
+  return *estimators_[i];
+}
+
+bool ShapeEstimatorHost::enabled(std::size_t i) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return i < enabled_.size() && enabled_[i];
+}
+
+std::vector<std::string> ShapeEstimatorHost::errors() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return errors_;
+}
+
 void ShapeEstimatorHost::fail(std::size_t i, const std::string& what) const {
-  enabled_[i] = 0;
-  const std::string msg = "shape estimator '" + estimators_[i]->name() + "' disabled: " + what;
-  errors_.push_back(msg);
-  std::cerr << msg << "\n";
+  std::string msg;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!enabled_[i]) return;  // another thread's call failed first and said so
+    enabled_[i] = 0;
+    msg = "shape estimator '" + estimators_[i]->name() + "' disabled: " + what;
+    errors_.push_back(msg);
+  }
+  try {
+    report_error_(msg);
+  } catch (...) {  // a reporter that throws must not take the caller down either
+  }
 }
 
 template <typename Call>
 bool ShapeEstimatorHost::guarded(std::size_t i, Call&& call) const {
+  ShapeEstimator* e;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (i >= estimators_.size() || !enabled_[i]) return false;
+    e = estimators_[i].get();  // stable: estimators are never removed
+  }
   try {
-    call(*estimators_[i]);
+    call(*e);
     return true;
-  } catch (const std::exception& e) {
-    fail(i, e.what());
+  } catch (const std::exception& ex) {
+    fail(i, ex.what());
   } catch (...) {
     fail(i, "unknown exception");
   }
@@ -32,19 +73,18 @@ bool ShapeEstimatorHost::guarded(std::size_t i, Call&& call) const {
 }
 
 void ShapeEstimatorHost::onView(const ViewData& view) {
-  for (std::size_t i = 0; i < estimators_.size(); ++i)
-    if (enabled_[i])
-      guarded(i, [&](ShapeEstimator& e) {
-        e.insertView(view);
-        e.update();
-      });
+  for (std::size_t i = 0, n = size(); i < n; ++i)
+    guarded(i, [&](ShapeEstimator& e) {
+      e.insertView(view);
+      e.update();
+    });
 }
 
 PointList ShapeEstimatorHost::extraTargets() const {
   PointList all;
-  for (std::size_t i = 0; i < estimators_.size(); ++i) {
+  for (std::size_t i = 0, n = size(); i < n; ++i) {
     PointList t;
-    if (enabled_[i] && guarded(i, [&](ShapeEstimator& e) { t = e.extraTargets(); }))
+    if (guarded(i, [&](ShapeEstimator& e) { t = e.extraTargets(); }))
       for (const auto& p : t)
         if (p.allFinite()) all.push_back(p);
   }
@@ -53,13 +93,23 @@ PointList ShapeEstimatorHost::extraTargets() const {
 
 std::vector<FruitEstimate> ShapeEstimatorHost::fruits(std::size_t i) const {
   std::vector<FruitEstimate> f;
-  if (enabled(i)) guarded(i, [&](ShapeEstimator& e) { f = e.fruits(); });  // f stays empty if it throws
+  guarded(i, [&](ShapeEstimator& e) { f = e.fruits(); });  // f stays empty if it throws
   return f;
 }
 
 void ShapeEstimatorHost::reset() {
-  for (std::size_t i = 0; i < estimators_.size(); ++i)
-    if (guarded(i, [](ShapeEstimator& e) { e.reset(); })) enabled_[i] = 1;
+  for (std::size_t i = 0, n = size(); i < n; ++i) {
+    ShapeEstimator& e = estimator(i);
+    try {
+      e.reset();
+      std::lock_guard<std::mutex> lock(mutex_);
+      enabled_[i] = 1;
+    } catch (const std::exception& ex) {
+      fail(i, std::string("reset failed: ") + ex.what());
+    } catch (...) {
+      fail(i, "reset failed: unknown exception");
+    }
+  }
 }
 
 }  // namespace planner

@@ -12,6 +12,20 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
   std::lock_guard<std::mutex> lock(mutex_);
   last_ = integrator_.integrate(map_, view.fruit_cloud, view.sensor_pose);
   dirty_ = dirty_ || last_.rays > 0;
+  ++totals_.views;
+  totals_.views_refused += last_.ok() ? 0 : 1;
+  totals_.points_skipped += last_.non_finite + last_.out_of_range;
+  totals_.rays_outside += last_.outside_map;
+  totals_.rays_over_budget += last_.over_budget;
+}
+
+EstimatorStatus SuperellipsoidEstimator::status() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  EstimatorStatus s = totals_;
+  s.blocks = map_.blockCount();
+  s.max_blocks = map_.params().maxBlocks();
+  s.memory_mb = static_cast<double>(map_.memoryBytes()) / 1048576.0;
+  return s;
 }
 
 void SuperellipsoidEstimator::update() {
@@ -45,6 +59,7 @@ void SuperellipsoidEstimator::reset() {
   std::lock_guard<std::mutex> lock(mutex_);
   map_.clear();
   pipeline_.reset();
+  totals_ = EstimatorStatus();
   surface_.clear();
   dirty_ = false;
 }

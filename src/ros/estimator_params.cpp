@@ -26,7 +26,7 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   planner::SuperellipsoidEstimatorParams p;
   read(nh, "voxel_size", p.map.voxel_size);
   read(nh, "voxels_per_side", p.map.voxels_per_side);
-  read(nh, "max_blocks", p.map.max_blocks);
+  read(nh, "memory_budget_mb", p.map.memory_budget_mb);
   read(nh, "truncation_voxels", p.integrator.truncation_voxels);
   read(nh, "max_weight", p.integrator.max_weight);
   read(nh, "min_range", p.integrator.min_range);

@@ -9,7 +9,8 @@ namespace fruit_shape_completion {
 namespace ros_io {
 
 ShapeEstimatorLoader::ShapeEstimatorLoader()
-    : loader_("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin") {}
+    : loader_("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin"),
+      host_([](const std::string& msg) { ROS_ERROR("%s", msg.c_str()); }) {}
 
 void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame) {
   XmlRpc::XmlRpcValue list;

@@ -26,7 +26,13 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     estimator_->insertView(view);
     const IntegrationReport r = estimator_->lastIntegration();
     if (!r.ok()) ROS_WARN("%s: view skipped: %s", name_.c_str(), r.error.c_str());
-    else if (!r.warning.empty()) ROS_DEBUG("%s: %s", name_.c_str(), r.warning.c_str());
+    if (!r.warning.empty()) {
+      // Throttled: a camera that keeps seeing beyond the budget would otherwise log every view.
+      const planner::EstimatorStatus s = estimator_->status();
+      ROS_WARN_THROTTLE(10.0, "%s: %s (since start: %zu points skipped, %zu rays outside the map, %zu rays over the "
+                        "memory budget; %zu of %zu blocks, %.0f MiB)", name_.c_str(), r.warning.c_str(),
+                        s.points_skipped, s.rays_outside, s.rays_over_budget, s.blocks, s.max_blocks, s.memory_mb);
+    }
   }
   void update() override {
     check();

@@ -308,7 +308,7 @@ TEST(TsdfMap, MemoryCropBoxBlockLimitAndReset) {
   EXPECT_LT(cropped.memoryBytes(), full.memoryBytes());
   EXPECT_GE(full.memoryBytes(), full.blockCount() * 64 * 64 * 64 * sizeof(TsdfVoxel));
   TsdfMapParams limited;
-  limited.max_blocks = 1;
+  limited.memory_budget_mb = 3.0;  // one 2 MiB block
   TsdfMap small(limited);
   integrateViews(small, TsdfIntegrator(), scene, Eigen::Vector3d(0.25, 0, 0.5), 2);
   EXPECT_EQ(small.blockCount(), 1u);
@@ -463,4 +463,47 @@ TEST(TsdfMap, BlockSideDoesNotChangeTheMap) {
     EXPECT_EQ(into.observedVoxelCount(), 2u);
   }
   std::remove(path.c_str());
+}
+
+// At the memory budget the map keeps what it has: the fruit mapped first keeps updating, a
+// second fruit that needs new blocks is dropped, and the report counts and says so.
+TEST(TsdfMap, AtItsMemoryBudgetNewBlocksAreRefusedCountedAndReported) {
+  TsdfMapParams params;
+  params.memory_budget_mb = 5.0;  // two 2 MiB blocks
+  EXPECT_EQ(params.maxBlocks(), 2u);
+  TsdfMap map(params);
+  // A fruit inside one block (blocks are 25.6 cm; this one spans [0, 0.256) on every axis).
+  const Superellipsoid first = sphere(0.03, Eigen::Vector3d(0.128, 0.128, 0.128));
+  AnalyticScene scene;
+  scene.shapes.push_back(first);
+  const TsdfIntegrator integ;
+  const PinholeCamera cam = cameraAround(first.t, Eigen::Vector3d(0.3, -1, 0.2), 0.22);
+  const DepthScan scan = renderDepth(scene, cam, 0.0, 1);
+  IntegrationReport r = integ.integrate(map, scan.points, cam.position);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.over_budget, 0u);
+  EXPECT_LE(map.blockCount(), 2u);
+  // Fill the budget, then a fruit 2 m away needs blocks the budget does not hold.
+  map.blockForUpdate(VoxelIndex(64 * 5, 0, 0));
+  map.blockForUpdate(VoxelIndex(64 * 6, 0, 0));
+  ASSERT_TRUE(map.atBudget());
+  const std::size_t blocks = map.blockCount();
+  const std::size_t observed = map.observedVoxelCount();
+  AnalyticScene far;
+  far.shapes.push_back(sphere(0.03, Eigen::Vector3d(2.128, 0.128, 0.128)));
+  const PinholeCamera far_cam = cameraAround(far.shapes[0].t, Eigen::Vector3d(0.3, -1, 0.2), 0.3);
+  r = integ.integrate(map, renderDepth(far, far_cam, 0.0, 2).points, far_cam.position);
+  EXPECT_TRUE(r.ok()) << r.error;
+  EXPECT_GT(r.over_budget, 100u);
+  EXPECT_EQ(r.over_budget, r.rays);
+  EXPECT_NE(r.warning.find("memory budget"), std::string::npos) << r.warning;
+  EXPECT_EQ(map.blockCount(), blocks);
+  EXPECT_EQ(map.observedVoxelCount(), observed);
+  // The first fruit, already mapped, still updates.
+  r = integ.integrate(map, scan.points, cam.position);
+  EXPECT_EQ(r.over_budget, 0u);
+  EXPECT_GT(r.voxel_updates, 0u);
+  TsdfMapParams none;
+  none.memory_budget_mb = 1.0;  // less than a block
+  EXPECT_THROW(TsdfMap{none}, std::invalid_argument);
 }

@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <mutex>
 #include <thread>
 
 using namespace fruit_shape_completion;
@@ -48,6 +50,29 @@ class ThrowingEstimator : public ShapeEstimator {
   std::vector<FruitEstimate> fruits() const override { return {}; }
   PointList extraTargets() const override { return {}; }
   void reset() override {}
+};
+
+// Throws from every call on every other invocation, from whichever thread calls it.
+class FlakyEstimator : public ShapeEstimator {
+ public:
+  std::string name() const override { return "flaky"; }
+  void insertView(const ViewData&) override { maybeThrow(); }
+  void update() override { maybeThrow(); }
+  std::vector<FruitEstimate> fruits() const override {
+    maybeThrow();
+    return {};
+  }
+  PointList extraTargets() const override {
+    maybeThrow();
+    return {Eigen::Vector3d(0, 0, 0)};
+  }
+  void reset() override {}
+
+ private:
+  void maybeThrow() const {
+    if (calls_++ % 2 == 0) throw std::runtime_error("flaky on purpose");
+  }
+  mutable std::atomic<unsigned> calls_{0};
 };
 
 }  // namespace
@@ -163,7 +188,7 @@ TEST(ShapeEstimatorHost, AThrowingEstimatorIsDisabledNotFatal) {
   EXPECT_TRUE(host.enabled(1));
   ASSERT_EQ(host.errors().size(), 1u);
   EXPECT_NE(host.errors()[0].find("broken on purpose"), std::string::npos);
-  const auto fruits = host.estimators()[1]->fruits();
+  const auto fruits = host.estimator(1).fruits();
   ASSERT_EQ(fruits.size(), 1u);
   EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.15 * truth.volume());
   EXPECT_FALSE(host.extraTargets().empty());  // the unseen back half
@@ -281,4 +306,83 @@ TEST(ViewpointPlanner, BadScenesGiveAMessageAndAValidResult) {
     EXPECT_NE(r.message.find("no ground-truth fruits"), std::string::npos) << r.message;
     EXPECT_FALSE(r.views.empty());
   }
+}
+
+// As the upstream planner drives it: views from two spinner threads, targets and fruits from
+// the planning thread and a display thread, resets from a service thread, while estimators
+// throw from several threads at once. Run under scripts/sanitize.sh tsan and asan.
+TEST(ShapeEstimatorHost, ConcurrentViewsQueriesResetsAndThrowingEstimators) {
+  std::vector<std::string> reported;
+  std::mutex reported_mutex;
+  ShapeEstimatorHost host([&](const std::string& msg) {
+    std::lock_guard<std::mutex> lock(reported_mutex);
+    reported.push_back(msg);
+  });
+  host.add(std::make_unique<FlakyEstimator>());
+  host.add(std::make_unique<ThrowingEstimator>());
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  std::mt19937 rng(5);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  std::vector<PointList> clouds;
+  std::vector<Eigen::Isometry3d> poses;
+  for (int v = 0; v < 4; ++v) {
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(std::cos(1.5 * v), -1, std::sin(1.5 * v));
+    scan.visible_fraction = 0.4;
+    scan.voxel = 0.002;
+    scan.seed = v;
+    clouds.push_back(scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan));
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+    poses.push_back(pose);
+  }
+  const PointList none;
+  std::atomic<bool> done{false};
+  std::atomic<int> queries{0}, resets{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 2; ++t)
+    threads.emplace_back([&, t] {
+      for (int round = 0; round < 3; ++round)
+        for (std::size_t v = static_cast<std::size_t>(t); v < clouds.size(); v += 2)
+          host.onView(ViewData{clouds[v], none, poses[v], 1.0});
+    });
+  for (int t = 0; t < 2; ++t)
+    threads.emplace_back([&] {
+      while (!done) {
+        for (const auto& p : host.extraTargets()) EXPECT_TRUE(p.allFinite());
+        for (std::size_t i = 0; i < host.size(); ++i)
+          for (const auto& f : host.fruits(i)) EXPECT_TRUE(f.center().allFinite());
+        host.errors();
+        ++queries;
+      }
+    });
+  threads.emplace_back([&] {
+    while (!done) {
+      host.reset();
+      ++resets;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
+  threads[0].join();
+  threads[1].join();
+  done = true;
+  for (std::size_t t = 2; t < threads.size(); ++t) threads[t].join();
+  EXPECT_GT(queries.load(), 0);
+  EXPECT_GT(resets.load(), 0);
+
+  // Every failure was recorded once per disabling and reported as recorded.
+  const std::vector<std::string> errors = host.errors();
+  EXPECT_EQ(errors, reported);
+  for (const auto& e : errors)
+    EXPECT_TRUE(e.find("flaky on purpose") != std::string::npos || e.find("broken on purpose") != std::string::npos) << e;
+
+  // The host still works: after a reset, all views give the fruit back.
+  host.reset();
+  for (std::size_t v = 0; v < clouds.size(); ++v) host.onView(ViewData{clouds[v], none, poses[v], 2.0});
+  EXPECT_TRUE(host.enabled(2));
+  const auto fruits = host.fruits(2);
+  ASSERT_EQ(fruits.size(), 1u);
+  EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.15 * truth.volume());
+  EXPECT_LT((fruits[0].center() - truth.t).norm(), 0.01);
 }

@@ -6,7 +6,9 @@
 #include <fruit_shape_completion/fruit_estimate.h>
 
 #include <Eigen/Geometry>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -20,6 +22,8 @@ struct ViewData {
   double time = 0.0;              // [s] since the episode start
 };
 
+// Implementations must be thread-safe: the upstream planner inserts views from its spinner
+// threads while its planning thread asks for targets and fruits, and resets from a service.
 class ShapeEstimator {
  public:
   virtual ~ShapeEstimator() = default;
@@ -33,18 +37,27 @@ class ShapeEstimator {
 };
 
 // Owns the estimators; an estimator that throws is disabled with a message, never taking the
-// planner down.
+// planner down. Every method may be called from several threads at once (add() before the
+// first view). The estimators are called outside the host's lock: a long fit in one thread
+// does not block queries of the host's state in another.
 class ShapeEstimatorHost {
  public:
+  // Where the host reports a disabled estimator (default: std::cerr); the ROS layer passes
+  // rosconsole.
+  using Reporter = std::function<void(const std::string&)>;
+  explicit ShapeEstimatorHost(Reporter report_error = nullptr);
+
   void add(std::unique_ptr<ShapeEstimator> estimator);
   // Insert + update of every enabled estimator.
   void onView(const ViewData& view);
   PointList extraTargets() const;
   // Fruits of estimator i; empty (and the estimator disabled) if it throws.
   std::vector<FruitEstimate> fruits(std::size_t i) const;
-  const std::vector<std::unique_ptr<ShapeEstimator>>& estimators() const { return estimators_; }
-  bool enabled(std::size_t i) const { return i < enabled_.size() && enabled_[i]; }
-  const std::vector<std::string>& errors() const { return errors_; }
+  std::size_t size() const;
+  ShapeEstimator& estimator(std::size_t i) const;  // i < size()
+  bool enabled(std::size_t i) const;
+  std::vector<std::string> errors() const;
+  // Resets every estimator and re-enables those whose reset succeeds.
   void reset();
 
  private:
@@ -52,7 +65,10 @@ class ShapeEstimatorHost {
   // Runs call(estimator i); if it throws, disables the estimator with the message and returns false.
   template <typename Call>
   bool guarded(std::size_t i, Call&& call) const;
-  std::vector<std::unique_ptr<ShapeEstimator>> estimators_;
+
+  Reporter report_error_;
+  mutable std::mutex mutex_;  // guards the members below
+  std::vector<std::unique_ptr<ShapeEstimator>> estimators_;  // only grows
   mutable std::vector<char> enabled_;
   mutable std::vector<std::string> errors_;
 };

@@ -20,6 +20,17 @@ struct SuperellipsoidEstimatorParams {
   bool publish_targets = true;  // hand the predicted surface to the planner as extra targets
 };
 
+// What the estimator has dropped since it started (or was reset), and its map's memory: the
+// counters behind its warnings, for logs and diagnostics.
+struct EstimatorStatus {
+  std::size_t views = 0, views_refused = 0;
+  std::size_t points_skipped = 0;    // NaN/Inf, or outside the range limits
+  std::size_t rays_outside = 0;      // partly outside the crop box or the map's range
+  std::size_t rays_over_budget = 0;  // partly dropped at the memory budget
+  std::size_t blocks = 0, max_blocks = 0;
+  double memory_mb = 0.0;
+};
+
 class SuperellipsoidEstimator : public ShapeEstimator {
  public:
   explicit SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params = {});
@@ -35,6 +46,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   PointList surface() const;
   IntegrationReport lastIntegration() const;
   PipelineStats lastPipelineStats() const;
+  EstimatorStatus status() const;
   double lastSurfaceSeconds() const;  // surface extraction of the last update
 
  private:
@@ -46,6 +58,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   PointList surface_;
   IntegrationReport last_;
   double surface_seconds_ = 0.0;
+  EstimatorStatus totals_;
   bool dirty_ = false;
 };
 
