@@ -8,16 +8,35 @@ namespace fruit_shape_completion {
 
 // The clusters of pcl::EuclideanClusterExtraction (connected components of the "closer than
 // tolerance" graph), found by union-find over a NeighbourGrid (docs/benchmarks.md).
+//
+// Points sharing a cube of side tolerance/8 first join one representative: dense or duplicate
+// input then costs a sort, not a neighbour scan per point over the whole pile (100 k identical
+// points took 17-54 s). A member lies within 0.22 tolerance of its representative, so a link
+// between two dense piles may be judged off by that much; the TSDF surface (4 mm spacing, 1 cm
+// tolerance) has one point per cube and is clustered exactly.
 std::vector<std::vector<int>> euclideanClusters(const PointList& points, const ClusteringParams& params) {
   std::vector<std::vector<int>> clusters;
   if (points.empty() || !(params.tolerance > 0.0)) return clusters;
-  std::vector<int> parent(points.size());
+  std::vector<std::pair<std::uint64_t, int>> keyed;
+  keyed.reserve(points.size());
+  const double inv_cube = 8.0 / params.tolerance;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (points[i].allFinite()) keyed.emplace_back(packCellKey(cellOf(points[i], inv_cube)), static_cast<int>(i));
+  std::sort(keyed.begin(), keyed.end());
+  PointList reps;
+  std::vector<int> rep_of(points.size(), -1);
+  for (std::size_t k = 0; k < keyed.size(); ++k) {
+    if (k == 0 || keyed[k].first != keyed[k - 1].first) reps.push_back(points[static_cast<std::size_t>(keyed[k].second)]);
+    rep_of[static_cast<std::size_t>(keyed[k].second)] = static_cast<int>(reps.size()) - 1;
+  }
+
+  std::vector<int> parent(reps.size());
   std::iota(parent.begin(), parent.end(), 0);
   auto root = [&](int i) {
     while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
     return i;
   };
-  const NeighbourGrid grid(points, params.tolerance);
+  const NeighbourGrid grid(reps, params.tolerance);
   grid.forEachPoint(params.tolerance, [&](int i, auto&& within) {
     within([&](int j, double, const Point&) {
       if (j <= i) return;
@@ -25,11 +44,11 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
       if (a != b) parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
     });
   });
-  // Components in the order of their first point; each root is its component's smallest index.
-  std::vector<int> slot(points.size(), -1);
+  // Components in the order of their first point.
+  std::vector<int> slot(reps.size(), -1);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!points[i].allFinite()) continue;
-    const auto r = static_cast<std::size_t>(root(static_cast<int>(i)));
+    if (rep_of[i] < 0) continue;  // not finite
+    const auto r = static_cast<std::size_t>(root(rep_of[i]));
     if (slot[r] < 0) {
       slot[r] = static_cast<int>(clusters.size());
       clusters.emplace_back();

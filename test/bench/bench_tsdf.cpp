@@ -228,3 +228,22 @@ static void BM_FiftyFruitMissingSurface(benchmark::State& state) {
   state.counters["missing"] = static_cast<double>(missing);
 }
 BENCHMARK(BM_FiftyFruitMissingSurface)->Unit(benchmark::kMillisecond);
+
+// Clustering on hostile input: Arg 0: 100 k identical points; Arg 1: 1 M points uniformly random
+// in a 1 m cube (1 cm tolerance, as the pipeline).
+static void BM_ClusteringHostile(benchmark::State& state) {
+  PointList points;
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  if (state.range(0) == 0) points.assign(100000, Eigen::Vector3d(0.3, 0.2, 0.1));
+  else
+    for (int i = 0; i < 1000000; ++i) points.emplace_back(u(rng), u(rng), u(rng));
+  ClusteringParams params;
+  params.min_size = 1;
+  params.max_size = 2000000;
+  std::size_t clusters = 0;
+  for (auto _ : state) clusters = euclideanClusters(points, params).size();
+  state.counters["points"] = static_cast<double>(points.size());
+  state.counters["clusters"] = static_cast<double>(clusters);
+}
+BENCHMARK(BM_ClusteringHostile)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);

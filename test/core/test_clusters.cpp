@@ -100,6 +100,27 @@ TEST(EuclideanClustering, SizeLimitsAndNonFinitePoints) {
   EXPECT_TRUE(euclideanClusters({}, ClusteringParams()).empty());
 }
 
+// Piles of duplicates (a stuck sensor, a replayed frame) cluster like single points, and two
+// piles farther apart than the tolerance stay two, as do chains that bridge them only through
+// points of their own.
+TEST(EuclideanClustering, DuplicatePilesAreClusteredAsTheirPositions) {
+  PointList pts(60000, Eigen::Vector3d(0.1, 0.2, 0.3));
+  pts.insert(pts.end(), 40000, Eigen::Vector3d(0.1, 0.2, 0.315));  // 1.5 cm away: another cluster
+  ClusteringParams params;
+  params.min_size = 1;
+  params.max_size = 1000000;
+  auto clusters = euclideanClusters(pts, params);
+  ASSERT_EQ(clusters.size(), 2u);
+  EXPECT_EQ(clusters[0].size(), 60000u);
+  EXPECT_EQ(clusters[1].size(), 40000u);
+  EXPECT_EQ(clusters[1].front(), 60000);
+  // A point midway links them (0.75 cm to each).
+  pts.emplace_back(0.1, 0.2, 0.3075);
+  clusters = euclideanClusters(pts, params);
+  ASSERT_EQ(clusters.size(), 1u);
+  EXPECT_EQ(clusters[0].size(), pts.size());
+}
+
 TEST(SurfaceNormals, SphereNormalsPointToTheCentre) {
   const Eigen::Vector3d c(0.2, 0.3, 0.4);
   const PointList pts = scan(sphere(0.04, c), 0.5);
