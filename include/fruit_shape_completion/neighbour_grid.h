@@ -7,6 +7,7 @@
 #include <fruit_shape_completion/grid_cell.h>
 #include <fruit_shape_completion/types.h>
 
+#include <array>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -25,14 +26,14 @@ class NeighbourGrid {
   template <typename Fn>
   void forEachPoint(double radius, Fn&& fn) const {
     const double r2 = radius * radius;
-    std::vector<std::pair<int, int>> ranges;
+    Ranges ranges;
     for (const auto& cell : cell_list_) {
-      neighbourRanges(cell.first, &ranges);
+      const int n = neighbourRanges(cell.first, &ranges);
       for (int k = cell.second.first; k < cell.second.second; ++k) {
         const Point& p = sorted_[static_cast<std::size_t>(k)];
         fn(order_[static_cast<std::size_t>(k)], [&](auto&& visit) {
-          for (const auto& range : ranges)
-            for (int m = range.first; m < range.second; ++m) {
+          for (int r = 0; r < n; ++r)
+            for (int m = ranges[r].first; m < ranges[r].second; ++m) {
               const Point& q = sorted_[static_cast<std::size_t>(m)];
               const double d2 = (q - p).squaredNorm();
               if (d2 <= r2) visit(order_[static_cast<std::size_t>(m)], d2, q);
@@ -46,8 +47,9 @@ class NeighbourGrid {
   bool anyWithin(const Point& q, double radius) const;
 
  private:
-  // The ranges of the occupied cells among `cell` and its 26 neighbours.
-  void neighbourRanges(const GridCell& cell, std::vector<std::pair<int, int>>* ranges) const;
+  using Ranges = std::array<std::pair<int, int>, 27>;
+  // The ranges of the occupied cells among `cell` and its 26 neighbours; returns their count.
+  int neighbourRanges(const GridCell& cell, Ranges* ranges) const;
 
   double inv_cell_;
   std::vector<int> order_;  // point indices grouped by cell

@@ -24,28 +24,25 @@ NeighbourGrid::NeighbourGrid(const PointList& points, double cell_size) : inv_ce
   }
 }
 
-void NeighbourGrid::neighbourRanges(const GridCell& cell, std::vector<std::pair<int, int>>* ranges) const {
-  ranges->clear();
+int NeighbourGrid::neighbourRanges(const GridCell& cell, Ranges* ranges) const {
+  int n = 0;
   for (std::int64_t dx = -1; dx <= 1; ++dx)
     for (std::int64_t dy = -1; dy <= 1; ++dy)
       for (std::int64_t dz = -1; dz <= 1; ++dz) {
         const auto it = cells_.find(packCellKey(cell + GridCell(dx, dy, dz)));
-        if (it != cells_.end()) ranges->push_back(it->second);
+        if (it != cells_.end()) (*ranges)[static_cast<std::size_t>(n++)] = it->second;
       }
+  return n;
 }
 
 bool NeighbourGrid::anyWithin(const Point& q, double radius) const {
   if (!q.allFinite() || sorted_.empty()) return false;
   const double r2 = radius * radius;
-  const GridCell c = cellOf(q, inv_cell_);
-  for (std::int64_t dx = -1; dx <= 1; ++dx)
-    for (std::int64_t dy = -1; dy <= 1; ++dy)
-      for (std::int64_t dz = -1; dz <= 1; ++dz) {
-        const auto it = cells_.find(packCellKey(c + GridCell(dx, dy, dz)));
-        if (it == cells_.end()) continue;
-        for (int m = it->second.first; m < it->second.second; ++m)
-          if ((sorted_[static_cast<std::size_t>(m)] - q).squaredNorm() <= r2) return true;
-      }
+  Ranges ranges;
+  const int n = neighbourRanges(cellOf(q, inv_cell_), &ranges);
+  for (int r = 0; r < n; ++r)
+    for (int m = ranges[r].first; m < ranges[r].second; ++m)
+      if ((sorted_[static_cast<std::size_t>(m)] - q).squaredNorm() <= r2) return true;
   return false;
 }
 

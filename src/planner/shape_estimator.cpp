@@ -38,11 +38,11 @@ std::vector<std::string> ShapeEstimatorHost::errors() const {
   return errors_;
 }
 
-void ShapeEstimatorHost::fail(std::size_t i, const std::string& what) const {
+void ShapeEstimatorHost::fail(std::size_t i, const std::string& what, bool always) const {
   std::string msg;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!enabled_[i]) return;  // another thread's call failed first and said so
+    if (!enabled_[i] && !always) return;  // another thread's call failed first and said so
     enabled_[i] = 0;
     msg = "shape estimator '" + estimators_[i]->name() + "' disabled: " + what;
     errors_.push_back(msg);
@@ -105,9 +105,9 @@ void ShapeEstimatorHost::reset() {
       std::lock_guard<std::mutex> lock(mutex_);
       enabled_[i] = 1;
     } catch (const std::exception& ex) {
-      fail(i, std::string("reset failed: ") + ex.what());
+      fail(i, std::string("reset failed: ") + ex.what(), true);
     } catch (...) {
-      fail(i, "reset failed: unknown exception");
+      fail(i, "reset failed: unknown exception", true);
     }
   }
 }

@@ -8,6 +8,7 @@
 #include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 
+#include <cstdio>
 #include <memory>
 
 namespace fruit_shape_completion {
@@ -26,13 +27,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     estimator_->insertView(view);
     const IntegrationReport r = estimator_->lastIntegration();
     if (!r.ok()) ROS_WARN("%s: view skipped: %s", name_.c_str(), r.error.c_str());
-    if (!r.warning.empty()) {
-      // Throttled: a camera that keeps seeing beyond the budget would otherwise log every view.
-      const planner::EstimatorStatus s = estimator_->status();
-      ROS_WARN_THROTTLE(10.0, "%s: %s (since start: %zu points skipped, %zu rays outside the map, %zu rays over the "
-                        "memory budget; %zu of %zu blocks, %.0f MiB)", name_.c_str(), r.warning.c_str(),
-                        s.points_skipped, s.rays_outside, s.rays_over_budget, s.blocks, s.max_blocks, s.memory_mb);
-    }
+    // Throttled: a camera that keeps seeing beyond the budget would otherwise log every view.
+    // The totals are gathered only when the message is printed (the macro evaluates its
+    // arguments then): they walk the map's blocks.
+    if (!r.warning.empty())
+      ROS_WARN_THROTTLE(10.0, "%s: %s (%s)", name_.c_str(), r.warning.c_str(), totals().c_str());
   }
   void update() override {
     check();
@@ -47,6 +46,15 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   }
 
  private:
+  std::string totals() const {
+    const planner::EstimatorStatus s = estimator_->status();
+    char text[256];
+    std::snprintf(text, sizeof(text),
+                  "since start: %zu points skipped, %zu rays outside the map, %zu rays over the memory budget; "
+                  "%zu of %zu blocks, %.0f MiB", s.points_skipped, s.rays_outside, s.rays_over_budget, s.blocks,
+                  s.max_blocks, s.memory_mb);
+    return text;
+  }
   void check() const {
     if (!estimator_) throw std::runtime_error("shape estimator used before initialize()");
   }

@@ -61,7 +61,9 @@ class ShapeEstimatorHost {
   void reset();
 
  private:
-  void fail(std::size_t i, const std::string& what) const;
+  // Disables estimator i and records and reports `what`; unless `always`, only if it was still
+  // enabled (two threads failing at once give one message).
+  void fail(std::size_t i, const std::string& what, bool always = false) const;
   // Runs call(estimator i); if it throws, disables the estimator with the message and returns false.
   template <typename Call>
   bool guarded(std::size_t i, Call&& call) const;
