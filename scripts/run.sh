@@ -19,8 +19,13 @@ if [ ! -x "$BIN_DIR/$exe" ]; then
   exit 2
 fi
 if [ -f "$BUILD_DIR/devel/setup.bash" ]; then
+  # setup.bash reads the positional parameters as its own options (--extend, ...): source it
+  # with none, then restore the executable's.
+  args=("$@")
+  set --
   # shellcheck disable=SC1091
   set +u; source "$BUILD_DIR/devel/setup.bash"; set -u
+  set -- ${args[@]+"${args[@]}"}
 fi
 export FSC_SHARED_DATA="${FSC_SHARED_DATA:-$ROOT/../shared/data}"
 exec "$BIN_DIR/$exe" "$@"

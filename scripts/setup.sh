@@ -12,8 +12,14 @@ PACKAGES=(
   libeigen3-dev libceres-dev liboctomap-dev libpcl-dev libpcl-conversions-dev
   libassimp-dev libembree-dev libyaml-cpp-dev libpng-dev
   libgtest-dev libbenchmark-dev
+  libstd-srvs-dev libdiagnostic-updater-dev libtopic-tools-dev
   python3-numpy python3-matplotlib
+  # rostopic echo / rviz of what the package publishes
+  python3-rostopic python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-visualization-msgs
+  python3-diagnostic-msgs python3-std-srvs python3-genmsg
 )
+# rviz for demo.launch and the screenshot (scripts/screenshot.sh): scripts/setup.sh --rviz
+if [ "${1:-}" = "--rviz" ]; then PACKAGES+=(rviz xvfb x11-apps imagemagick); fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -8,6 +8,8 @@
 #include <ros/node_handle.h>
 
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace fruit_shape_completion {
 
@@ -16,6 +18,9 @@ class ShapeEstimatorPlugin : public planner::ShapeEstimator {
   // `nh` is the plugin's own namespace (e.g. /roi_viewpoint_planner/superellipsoid): parameters
   // are read and topics advertised there. Throws std::runtime_error naming a bad parameter.
   virtual void initialize(const std::string& name, ros::NodeHandle& nh, const std::string& map_frame) = 0;
+  // Name/value pairs the host publishes as the estimator's diagnostics (map size, memory,
+  // dropped data, last update).
+  virtual std::vector<std::pair<std::string, std::string>> diagnostics() const { return {}; }
 };
 
 }  // namespace fruit_shape_completion

@@ -6,10 +6,10 @@ namespace fruit_shape_completion {
 namespace planner {
 
 SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)
-    : params_(params), map_(params.map), integrator_(params.integrator), pipeline_(params.pipeline) {}
+    : params_(params), pipeline_(params.pipeline), map_(params.map), integrator_(params.integrator) {}
 
 void SuperellipsoidEstimator::insertView(const ViewData& view) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(map_mutex_);
   last_ = integrator_.integrate(map_, view.fruit_cloud, view.sensor_pose);
   dirty_ = dirty_ || last_.rays > 0;
   ++totals_.views;
@@ -20,7 +20,7 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
 }
 
 EstimatorStatus SuperellipsoidEstimator::status() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(map_mutex_);
   EstimatorStatus s = totals_;
   s.blocks = map_.blockCount();
   s.max_blocks = map_.params().maxBlocks();
@@ -29,63 +29,103 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
 }
 
 void SuperellipsoidEstimator::update() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (!dirty_) return;
-  const auto start = std::chrono::steady_clock::now();
-  surface_ = extractSurfacePoints(map_, params_.surface);
-  surface_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  pipeline_.update(surface_);
-  dirty_ = false;
+  std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  PointList surface;
+  double surface_seconds = 0.0;
+  {
+    std::lock_guard<std::mutex> lock(map_mutex_);
+    if (!dirty_) return;
+    const auto start = std::chrono::steady_clock::now();
+    surface = extractSurfacePoints(map_, params_.surface);
+    surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    dirty_ = false;
+  }
+  // The fit runs on the surface copy, with the map free for new views and the last results
+  // free for queries.
+  pipeline_.update(surface);
+  std::vector<FruitEstimate> estimates = pipeline_.fruits();
+  PointList targets;
+  if (params_.publish_targets)
+    for (const auto& f : estimates)
+      if (f.accepted) targets.insert(targets.end(), f.missing_surface.begin(), f.missing_surface.end());
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  estimates_ = std::move(estimates);
+  surface_ = std::move(surface);
+  targets_ = std::move(targets);
+  stats_ = pipeline_.lastStats();
+  surface_seconds_ = surface_seconds;
 }
 
 std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(results_mutex_);
   std::vector<FruitEstimate> out;
-  for (const auto& f : pipeline_.fruits())
+  for (const auto& f : estimates_)
     if (f.accepted) out.push_back(f);
   return out;
 }
 
 PointList SuperellipsoidEstimator::extraTargets() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  PointList out;
-  if (!params_.publish_targets) return out;
-  for (const auto& f : pipeline_.fruits())
-    if (f.accepted) out.insert(out.end(), f.missing_surface.begin(), f.missing_surface.end());
-  return out;
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return targets_;
 }
 
 void SuperellipsoidEstimator::reset() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  std::lock_guard<std::mutex> map_lock(map_mutex_);
+  std::lock_guard<std::mutex> lock(results_mutex_);
   map_.clear();
   pipeline_.reset();
   totals_ = EstimatorStatus();
-  surface_.clear();
+  last_ = IntegrationReport();
   dirty_ = false;
+  estimates_.clear();
+  surface_.clear();
+  targets_.clear();
+  stats_ = PipelineStats();
+}
+
+bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error) const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  return map_.save(path, error);
+}
+
+bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* error) {
+  TsdfMap loaded(params_.map);  // read outside the lock: the map keeps taking views meanwhile
+  if (!loaded.load(path, error)) return false;
+  if (loaded.params().voxel_size != params_.map.voxel_size) {
+    if (error)
+      *error = path + ": voxel size " + std::to_string(loaded.params().voxel_size) + " m differs from the map's " +
+               std::to_string(params_.map.voxel_size) + " m";
+    return false;
+  }
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  map_ = std::move(loaded);
+  dirty_ = true;  // the next update() fits the loaded map
+  return true;
 }
 
 std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return pipeline_.fruits();
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return estimates_;
 }
 
 PointList SuperellipsoidEstimator::surface() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(results_mutex_);
   return surface_;
 }
 
 IntegrationReport SuperellipsoidEstimator::lastIntegration() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(map_mutex_);
   return last_;
 }
 
 PipelineStats SuperellipsoidEstimator::lastPipelineStats() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return pipeline_.lastStats();
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return stats_;
 }
 
 double SuperellipsoidEstimator::lastSurfaceSeconds() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(results_mutex_);
   return surface_seconds_;
 }
 

@@ -1,5 +1,8 @@
 #include <fruit_shape_completion/ros/estimator_params.h>
 
+#include <ros/param.h>
+
+#include <algorithm>
 #include <stdexcept>
 #include <type_traits>
 
@@ -11,46 +14,69 @@ namespace {
 // Present but of the wrong type (a string for a number, 0.5 for an integer) is an error, not
 // a silent fallback to the default.
 template <typename T>
-void read(const ros::NodeHandle& nh, const std::string& name, T& value) {
+void readParam(const ros::NodeHandle& nh, const std::string& name, T& value, std::vector<std::string>* known) {
+  known->push_back(name);
   if (!nh.hasParam(name)) return;
   T v;
-  if (!nh.getParam(name, v))
+  XmlRpc::XmlRpcValue raw;
+  // roscpp rounds a double into an int parameter: 64.5 voxels would silently become 65.
+  const bool rounded = std::is_same<T, int>::value && nh.getParam(name, raw) && raw.getType() != XmlRpc::XmlRpcValue::TypeInt;
+  if (rounded || !nh.getParam(name, v))
     throw std::runtime_error("parameter '" + nh.resolveName(name) + "' has the wrong type (expected " +
                              (std::is_same<T, int>::value ? "an integer" : std::is_same<T, bool>::value ? "true/false" : "a number") + ")");
   value = v;
 }
 
+// A misspelt key would otherwise leave its parameter at the default without a word.
+void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>& known) {
+  std::vector<std::string> names;
+  if (!ros::param::getParamNames(names)) return;
+  const std::string prefix = nh.getNamespace() == "/" ? "/" : nh.getNamespace() + "/";
+  for (const auto& full : names) {
+    if (full.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string key = full.substr(prefix.size(), full.find('/', prefix.size()) - prefix.size());
+    if (std::find(known.begin(), known.end(), key) != known.end()) continue;
+    std::string valid;
+    for (const auto& k : known) valid += (valid.empty() ? "" : ", ") + k;
+    throw std::runtime_error("unknown parameter '" + prefix + key + "' (valid: " + valid + ")");
+  }
+}
+
 }  // namespace
 
-planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh) {
+planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
+                                                           const std::vector<std::string>& other_keys) {
   planner::SuperellipsoidEstimatorParams p;
-  read(nh, "voxel_size", p.map.voxel_size);
-  read(nh, "voxels_per_side", p.map.voxels_per_side);
-  read(nh, "memory_budget_mb", p.map.memory_budget_mb);
-  read(nh, "truncation_voxels", p.integrator.truncation_voxels);
-  read(nh, "max_weight", p.integrator.max_weight);
-  read(nh, "min_range", p.integrator.min_range);
-  read(nh, "max_range", p.integrator.max_range);
-  read(nh, "remove_outliers", p.integrator.remove_outliers);
-  read(nh, "outlier_k", p.integrator.outliers.k);
-  read(nh, "outlier_std_mul", p.integrator.outliers.std_mul);
-  read(nh, "outlier_radius", p.integrator.outliers.search_radius);
-  read(nh, "cluster_tolerance", p.pipeline.clustering.tolerance);
-  read(nh, "cluster_min_size", p.pipeline.clustering.min_size);
-  read(nh, "cluster_max_size", p.pipeline.clustering.max_size);
-  read(nh, "normal_radius", p.pipeline.normals.radius);
-  read(nh, "center_lambda", p.pipeline.center_lambda);
-  read(nh, "alpha", p.pipeline.fit.alpha);
-  read(nh, "gamma", p.pipeline.fit.gamma);
-  read(nh, "min_axis", p.pipeline.fit.min_axis);
-  read(nh, "max_axis", p.pipeline.fit.max_axis);
-  read(nh, "min_e", p.pipeline.fit.min_e);
-  read(nh, "max_e", p.pipeline.fit.max_e);
-  read(nh, "max_iterations", p.pipeline.fit.max_iterations);
-  read(nh, "max_rms", p.pipeline.fit.max_rms);
-  read(nh, "missing_surface_samples", p.pipeline.missing.samples);
-  read(nh, "missing_surface_threshold", p.pipeline.missing.threshold);
-  read(nh, "publish_targets", p.publish_targets);
+  std::vector<std::string> known = other_keys;
+  auto read = [&](const std::string& name, auto& value) { readParam(nh, name, value, &known); };
+  read("voxel_size", p.map.voxel_size);
+  read("voxels_per_side", p.map.voxels_per_side);
+  read("memory_budget_mb", p.map.memory_budget_mb);
+  read("truncation_voxels", p.integrator.truncation_voxels);
+  read("max_weight", p.integrator.max_weight);
+  read("min_range", p.integrator.min_range);
+  read("max_range", p.integrator.max_range);
+  read("remove_outliers", p.integrator.remove_outliers);
+  read("outlier_k", p.integrator.outliers.k);
+  read("outlier_std_mul", p.integrator.outliers.std_mul);
+  read("outlier_radius", p.integrator.outliers.search_radius);
+  read("cluster_tolerance", p.pipeline.clustering.tolerance);
+  read("cluster_min_size", p.pipeline.clustering.min_size);
+  read("cluster_max_size", p.pipeline.clustering.max_size);
+  read("normal_radius", p.pipeline.normals.radius);
+  read("center_lambda", p.pipeline.center_lambda);
+  read("alpha", p.pipeline.fit.alpha);
+  read("gamma", p.pipeline.fit.gamma);
+  read("min_axis", p.pipeline.fit.min_axis);
+  read("max_axis", p.pipeline.fit.max_axis);
+  read("min_e", p.pipeline.fit.min_e);
+  read("max_e", p.pipeline.fit.max_e);
+  read("max_iterations", p.pipeline.fit.max_iterations);
+  read("max_rms", p.pipeline.fit.max_rms);
+  read("missing_surface_samples", p.pipeline.missing.samples);
+  read("missing_surface_threshold", p.pipeline.missing.threshold);
+  read("publish_targets", p.publish_targets);
+  rejectUnknownKeys(nh, known);
   try {
     p.map.validate();
     p.integrator.validate();

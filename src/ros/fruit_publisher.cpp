@@ -1,5 +1,5 @@
-#include <fruit_shape_completion/SuperellipsoidArray.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
+#include <fruit_shape_completion/ros/upstream_messages.h>
 
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -45,10 +45,10 @@ sensor_msgs::PointCloud2 toCloud(const PointList& points, const std::string& fra
   return msg;
 }
 
-bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size_t* non_finite, std::string* error) {
-  points->clear();
-  *non_finite = 0;
-  // PCL's conversion trusts the header: a message whose sizes lie is refused here first.
+namespace {
+
+// PCL's conversion trusts the header: a message whose sizes lie is refused here first.
+bool checkXyzCloud(const sensor_msgs::PointCloud2& msg, std::string* error) {
   int xyz = 0;
   for (const auto& f : msg.fields)
     if (f.name == "x" || f.name == "y" || f.name == "z") {
@@ -72,6 +72,15 @@ bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size
     *error = "cloud data is shorter than its width, height and steps say";
     return false;
   }
+  return true;
+}
+
+}  // namespace
+
+bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size_t* non_finite, std::string* error) {
+  points->clear();
+  *non_finite = 0;
+  if (!checkXyzCloud(msg, error)) return false;
   pcl::PointCloud<pcl::PointXYZ> cloud;
   pcl::fromROSMsg(msg, cloud);
   points->reserve(cloud.size());
@@ -79,6 +88,30 @@ bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size
     const Eigen::Vector3d q(p.x, p.y, p.z);
     if (q.allFinite()) points->push_back(q);
     else ++*non_finite;
+  }
+  return true;
+}
+
+bool fromRoiCloud(const sensor_msgs::PointCloud2& msg, const std::vector<std::int32_t>& indices, PointList* all,
+                  PointList* selected, std::size_t* bad_indices, std::string* error) {
+  all->clear();
+  selected->clear();
+  *bad_indices = 0;
+  if (!checkXyzCloud(msg, error)) return false;
+  pcl::PointCloud<pcl::PointXYZ> cloud;
+  pcl::fromROSMsg(msg, cloud);
+  all->reserve(cloud.size());
+  for (const auto& p : cloud)
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) all->emplace_back(p.x, p.y, p.z);
+  selected->reserve(indices.size());
+  for (const std::int32_t i : indices) {
+    if (i < 0 || static_cast<std::size_t>(i) >= cloud.size()) {
+      ++*bad_indices;
+      continue;
+    }
+    const auto& p = cloud[static_cast<std::size_t>(i)];
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) selected->emplace_back(p.x, p.y, p.z);
+    else ++*bad_indices;
   }
   return true;
 }
@@ -123,8 +156,9 @@ void surfaceTriangles(const Superellipsoid& se, std::vector<geometry_msgs::Point
 
 }  // namespace
 
-FruitPublisher::FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame) : frame_(map_frame) {
-  superellipsoids_ = nh.advertise<fruit_shape_completion::SuperellipsoidArray>("superellipsoids", 1, true);
+FruitPublisher::FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic)
+    : frame_(map_frame) {
+  superellipsoids_ = advertiseUpstreamSuperellipsoids(nh, superellipsoids_topic, true);
   markers_ = nh.advertise<visualization_msgs::MarkerArray>("fruit_markers", 1, true);
   clusters_ = nh.advertise<sensor_msgs::PointCloud2>("clusters", 1, true);
   missing_ = nh.advertise<sensor_msgs::PointCloud2>("missing_surface", 1, true);
@@ -150,7 +184,9 @@ void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const Poi
     if (!f.accepted) continue;
     const Superellipsoid& s = f.shape;
     fruit_shape_completion::SuperellipsoidFit m;
-    m.id = f.id;
+    m.header = arr.header;
+    m.id = static_cast<std::uint32_t>(std::max(f.id, 0));
+    m.object_tracking = true;
     m.a = s.a;
     m.b = s.b;
     m.c = s.c;
@@ -159,9 +195,10 @@ void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const Poi
     m.tx = s.t.x();
     m.ty = s.t.y();
     m.tz = s.t.z();
-    m.roll = s.rpy.x();
-    m.pitch = s.rpy.y();
-    m.yaw = s.rpy.z();
+    constexpr double kDegrees = 180.0 / M_PI;  // the upstream message's unit
+    m.roll = s.rpy.x() * kDegrees;
+    m.pitch = s.rpy.y() * kDegrees;
+    m.yaw = s.rpy.z() * kDegrees;
     m.volume = f.volume;
     arr.superellipsoids.push_back(m);
     missing.insert(missing.end(), f.missing_surface.begin(), f.missing_surface.end());

@@ -38,7 +38,31 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
     }
     ros::NodeHandle plugin_nh(nh, name);
     plugin->initialize(name, plugin_nh, map_frame);
+    plugins_.push_back(plugin.get());
     host_.add(std::move(plugin));
+  }
+  if (plugins_.empty()) return;
+  diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, nh);
+  diagnostics_->setHardwareID("shape_estimators");
+  for (std::size_t i = 0; i < plugins_.size(); ++i)
+    diagnostics_->add("shape estimator " + plugins_[i]->name(),
+                      [this, i](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(i, s); });
+  diagnostics_timer_ = nh.createTimer(ros::Duration(1.0), [this](const ros::TimerEvent&) { diagnostics_->update(); });
+}
+
+void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status) const {
+  if (!host_.enabled(i)) {
+    std::string why;
+    for (const auto& e : host_.errors())
+      if (e.find("'" + plugins_[i]->name() + "'") != std::string::npos) why = e;
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "disabled: " + why);
+    return;
+  }
+  try {
+    for (const auto& kv : plugins_[i]->diagnostics()) status.add(kv.first, kv.second);
+    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
+  } catch (const std::exception& e) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, std::string("no diagnostics: ") + e.what());
   }
 }
 

@@ -1,10 +1,13 @@
 // surface_cloud_node: clustering and fitting only, for recorded data. Subscribes to a fruit
 // surface cloud (~surface_cloud, sensor_msgs/PointCloud2 in any frame with tf, e.g. voxblox's
-// surface_pointcloud) and publishes superellipsoids, fruit_markers, clusters, missing_surface
-// and tsdf_surface in its private namespace, in ~map_frame. Usable with rosbag play.
+// surface_pointcloud) and publishes the superellipsoids as superellipsoid_msgs/SuperellipsoidArray
+// on ~superellipsoids_topic (default where capsicum_superellipsoid_detector publishes them), and
+// fruit_markers, clusters, missing_surface and tsdf_surface in its private namespace, in
+// ~map_frame. Usable with rosbag play.
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/ros/estimator_params.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
+#include <fruit_shape_completion/ros/upstream_messages.h>
 
 #include <ros/ros.h>
 #include <tf2_eigen/tf2_eigen.h>
@@ -25,10 +28,13 @@ int main(int argc, char** argv) {
     ROS_FATAL("%s", e.what());
     return 1;
   }
-  ros_io::FruitPublisher publisher(pnh, map_frame);
+  std::string superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic;
+  pnh.param("superellipsoids_topic", superellipsoids_topic, superellipsoids_topic);
+  ros_io::FruitPublisher publisher(pnh, map_frame, superellipsoids_topic);
   tf2_ros::Buffer buffer;
   tf2_ros::TransformListener listener(buffer);
-  ros::Subscriber sub = pnh.subscribe<sensor_msgs::PointCloud2>("surface_cloud", 2, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
+  std::size_t dropped = 0;
+  auto on_cloud = [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
     PointList pts;
     std::size_t bad = 0;
     std::string err;
@@ -55,6 +61,13 @@ int main(int argc, char** argv) {
     publisher.publish(fruits, pts, msg->header.stamp);
     ROS_INFO("surface cloud: %zu points, %d clusters, %d fruits accepted (%.1f ms)", pts.size(),
              pipeline->lastStats().clusters, pipeline->lastStats().accepted, pipeline->lastStats().seconds * 1000);
+  };
+  ros::Subscriber sub = pnh.subscribe<sensor_msgs::PointCloud2>("surface_cloud", 2, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
+    try {
+      on_cloud(msg);
+    } catch (const std::exception& e) {  // std::bad_alloc among them: drop this cloud, keep running
+      ROS_ERROR("surface cloud dropped (%zu so far): %s", ++dropped, e.what());
+    }
   });
   ros::spin();
   return 0;

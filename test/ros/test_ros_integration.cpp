@@ -1,14 +1,25 @@
 #include <fruit_shape_completion/SuperellipsoidArray.h>
 #include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
+#include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 #include <fruit_shape_completion/ros/shape_estimator_loader.h>
+#include <fruit_shape_completion/ros/upstream_messages.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
 #include <fruit_shape_completion/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl_conversions/pcl_conversions.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <topic_tools/shape_shifter.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <limits>
 
 using namespace fruit_shape_completion;
@@ -27,7 +38,189 @@ bool waitFor(Pred pred, double seconds) {
   return pred();
 }
 
+// ../shared/upstream, or "" if absent.
+std::string upstreamDir() {
+  const char* data = std::getenv("FSC_SHARED_DATA");
+  const std::string dir = std::string(data ? data : FSC_SOURCE_DIR "/../shared/data") + "/../upstream";
+  return std::ifstream(dir + "/README.md") ? dir : "";
+}
+
+// genmsg's md5sum of an upstream type, from the upstream .msg files.
+std::string upstreamMd5(const std::string& type) {
+  const std::string cmd = "/usr/bin/python3 " FSC_SOURCE_DIR "/test/ros/upstream_md5.py " + upstreamDir() + " " + type;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return "";
+  char line[128] = {0};
+  const bool ok = std::fgets(line, sizeof(line), pipe) != nullptr;
+  pclose(pipe);
+  std::string md5 = ok ? line : "";
+  while (!md5.empty() && (md5.back() == '\n' || md5.back() == '\r')) md5.pop_back();
+  return md5;
+}
+
+// A PointcloudWithRoi as pointcloud_roi builds it: the camera's coloured cloud in the map frame,
+// voxel-downsampled to 1 cm, the indices of its red points, the camera pose as the transform.
+// `in_camera_frame` instead keeps the cloud in the camera frame (the transform then takes it to
+// the map), the other case upstream's planner handles.
+fruit_shape_completion::PointcloudWithRoi roiCloud(const AnalyticScene& scene, std::size_t fruit_shapes,
+                                                   const PinholeCamera& camera, bool in_camera_frame = false) {
+  const DepthScan scan = renderDepth(scene, camera, 0.0005, 3);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = camera.rotation;
+  pose.translation() = camera.position;
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr full(new pcl::PointCloud<pcl::PointXYZRGB>);
+  for (std::size_t i = 0; i < scan.points.size(); ++i) {
+    const Eigen::Vector3d p = in_camera_frame ? Eigen::Vector3d(pose.inverse() * scan.points[i]) : scan.points[i];
+    pcl::PointXYZRGB q;
+    q.x = p.x(), q.y = p.y(), q.z = p.z();
+    const bool fruit = static_cast<std::size_t>(scan.labels[i]) < fruit_shapes;
+    q.r = fruit ? 200 : 40, q.g = fruit ? 20 : 160, q.b = 30;
+    full->push_back(q);
+  }
+  pcl::PointCloud<pcl::PointXYZRGB> down;
+  pcl::VoxelGrid<pcl::PointXYZRGB> grid;
+  grid.setInputCloud(full);
+  grid.setLeafSize(0.01f, 0.01f, 0.01f);
+  grid.filter(down);
+  fruit_shape_completion::PointcloudWithRoi msg;
+  for (std::size_t i = 0; i < down.size(); ++i)
+    if (down[i].r > down[i].g) msg.roi_indices.push_back(static_cast<std::int32_t>(i));  // the red test
+  pcl::toROSMsg(down, msg.cloud);
+  msg.cloud.header.frame_id = in_camera_frame ? "camera" : "world";
+  msg.transform = tf2::eigenToTransform(pose).transform;
+  return msg;
+}
+
+// A fruit on a leaf and cameras around its front, 35-45 cm away.
+struct FruitOnALeaf {
+  AnalyticScene scene;
+  Superellipsoid truth;
+  std::vector<PinholeCamera> cameras;
+  FruitOnALeaf() {
+    truth.a = 0.04, truth.b = 0.035, truth.c = 0.05, truth.e1 = 0.7, truth.e2 = 0.8;
+    truth.t = Eigen::Vector3d(0.3, 0.6, 0.8);
+    truth.rpy = Eigen::Vector3d(0.1, -0.2, 0.4);
+    scene.shapes.push_back(truth);
+    scene.planes.push_back({Eigen::Vector3d(0.3, 0.72, 0.8), Eigen::Vector3d(0, 1, 0)});
+    for (double az : {-0.7, -0.25, 0.2, 0.6})
+      for (double el : {-0.3, 0.35}) {
+        const Eigen::Vector3d dir(std::sin(az) * std::cos(el), -std::cos(az) * std::cos(el), std::sin(el));
+        cameras.push_back(PinholeCamera::lookingAt(truth.t + 0.4 * dir, truth.t));
+      }
+  }
+};
+
 }  // namespace
+
+TEST(UpstreamMessages, Md5sumsEqualGenmsgsFromTheUpstreamFiles) {
+  if (upstreamDir().empty()) GTEST_SKIP() << "../shared/upstream is absent: upstream message files not available";
+  EXPECT_EQ(upstreamMd5(ros_io::kUpstreamSuperellipsoidArrayType),
+            ros::message_traits::md5sum<fruit_shape_completion::SuperellipsoidArray>());
+  EXPECT_EQ(upstreamMd5(ros_io::kUpstreamPointcloudWithRoiType),
+            ros::message_traits::md5sum<fruit_shape_completion::PointcloudWithRoi>());
+  const std::string definition = ros_io::upstreamSuperellipsoidArrayDefinition();
+  EXPECT_NE(definition.find("MSG: superellipsoid_msgs/Superellipsoid"), std::string::npos) << definition;
+  EXPECT_EQ(definition.find("MSG: fruit_shape_completion"), std::string::npos) << definition;
+  EXPECT_EQ(definition.find("SuperellipsoidFit[]"), std::string::npos) << definition;
+}
+
+TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUnseenSide) {
+  ros::NodeHandle nh("~/glue");
+  XmlRpc::XmlRpcValue list;
+  list[0]["name"] = "superellipsoid";
+  list[0]["type"] = "fruit_shape_completion/SuperellipsoidEstimator";
+  nh.setParam("shape_estimators", list);
+  nh.setParam("superellipsoid/superellipsoids_topic", "superellipsoids");
+  ros_io::RoiPlannerShapeEstimators estimators(nh, "world");
+  const FruitOnALeaf s;
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    const auto msg = roiCloud(s.scene, 1, s.cameras[i], i % 2 == 1);
+    ASSERT_GT(msg.roi_indices.size(), 50u);
+    estimators.insertView(msg.cloud, msg.roi_indices, msg.transform, i);
+  }
+  EXPECT_EQ(estimators.viewsSkipped(), 0u);
+  const auto fruits = estimators.host().fruits(0);
+  ASSERT_EQ(fruits.size(), 1u);
+  EXPECT_LT((fruits[0].center() - s.truth.t).norm(), 0.01);
+  EXPECT_NEAR(fruits[0].volume, s.truth.volume(), 0.25 * s.truth.volume());
+  const auto targets = estimators.extraTargets();
+  ASSERT_GT(targets.size(), 10u);
+  int behind = 0;
+  for (const auto& p : targets) {
+    const Eigen::Vector3d q(p.x(), p.y(), p.z());
+    behind += (q - s.truth.t).y() > 0;  // the cameras are all at y < fruit
+  }
+  EXPECT_GT(behind, static_cast<int>(0.8 * targets.size()));
+  // Bad input is skipped and counted, not fatal, and the fruit stays.
+  auto bad = roiCloud(s.scene, 1, s.cameras[0]);
+  bad.roi_indices.push_back(-5);
+  bad.roi_indices.push_back(1 << 30);
+  estimators.insertView(bad.cloud, bad.roi_indices, bad.transform);
+  EXPECT_EQ(estimators.indicesSkipped(), 2u);
+  bad.cloud.data.resize(10);
+  estimators.insertView(bad.cloud, bad.roi_indices, bad.transform);
+  EXPECT_EQ(estimators.viewsSkipped(), 1u);
+  EXPECT_EQ(estimators.host().fruits(0).size(), 1u);
+  estimators.reset();
+  EXPECT_TRUE(estimators.host().fruits(0).empty());
+  EXPECT_TRUE(estimators.extraTargets().empty());
+}
+
+TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids) {
+  ros::NodeHandle nh;
+  ros::AdvertiseOptions options;
+  options.init<fruit_shape_completion::PointcloudWithRoi>(ros_io::kUpstreamRoiTopic, 10);
+  options.datatype = ros_io::kUpstreamPointcloudWithRoiType;  // as pointcloud_roi advertises it
+  ros::Publisher pub = nh.advertise(options);
+  topic_tools::ShapeShifter::ConstPtr last;
+  ros::Subscriber sub = nh.subscribe<topic_tools::ShapeShifter>(
+      ros_io::kUpstreamSuperellipsoidsTopic, 5, [&](const topic_tools::ShapeShifter::ConstPtr& m) { last = m; });
+  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0 && sub.getNumPublishers() > 0; }, 30.0));
+  const FruitOnALeaf s;
+  for (const auto& camera : s.cameras) {
+    pub.publish(roiCloud(s.scene, 1, camera));
+    ros::WallDuration(0.2).sleep();
+  }
+  fruit_shape_completion::SuperellipsoidArray arr;
+  ASSERT_TRUE(waitFor([&] {
+    if (!last) return false;
+    // The bytes as a superellipsoid_msgs subscriber would read them (instantiate() would refuse
+    // this package's type name).
+    std::vector<std::uint8_t> bytes(last->size());
+    ros::serialization::OStream out(bytes.data(), bytes.size());
+    last->write(out);
+    ros::serialization::IStream in(bytes.data(), bytes.size());
+    ros::serialization::deserialize(in, arr);
+    return arr.superellipsoids.size() == 1 && last->getDataType() == ros_io::kUpstreamSuperellipsoidArrayType;
+  }, 60.0)) << (last ? last->getDataType() : std::string("nothing received"));
+  EXPECT_EQ(last->getMD5Sum(), ros::message_traits::md5sum<fruit_shape_completion::SuperellipsoidArray>());
+  if (!upstreamDir().empty()) EXPECT_EQ(last->getMD5Sum(), upstreamMd5(ros_io::kUpstreamSuperellipsoidArrayType));
+  EXPECT_NE(last->getMessageDefinition().find("MSG: superellipsoid_msgs/Superellipsoid"), std::string::npos);
+  // Field by field: the shape, pose (angles in degrees) and volume describe the true fruit.
+  const auto& m = arr.superellipsoids[0];
+  EXPECT_EQ(arr.header.frame_id, "world");
+  EXPECT_EQ(m.header.frame_id, "world");
+  EXPECT_TRUE(m.object_tracking);
+  Superellipsoid fit;
+  fit.a = m.a, fit.b = m.b, fit.c = m.c, fit.e1 = m.e1, fit.e2 = m.e2;
+  fit.t = Eigen::Vector3d(m.tx, m.ty, m.tz);
+  fit.rpy = Eigen::Vector3d(m.roll, m.pitch, m.yaw) * M_PI / 180.0;
+  EXPECT_NEAR(m.volume, fit.volume(), 1e-9);
+  EXPECT_LT((fit.t - s.truth.t).norm(), 0.01);
+  EXPECT_NEAR(m.volume, s.truth.volume(), 0.25 * s.truth.volume());
+  // The seen side of the true surface lies on the published surface (angles read as degrees).
+  int on_surface = 0, seen = 0;
+  for (const auto& camera : s.cameras) {
+    const DepthScan scan = renderDepth(s.scene, PinholeCamera::lookingAt(camera.position, s.truth.t, 64, 48));
+    for (std::size_t i = 0; i < scan.points.size(); ++i)
+      if (scan.labels[i] == 0) {
+        ++seen;
+        on_surface += std::abs(fit.radialDistance(scan.points[i])) < 0.006;
+      }
+  }
+  ASSERT_GT(seen, 100);
+  EXPECT_GT(on_surface, 0.8 * seen);
+}
 
 TEST(Plugin, LoadsByNameThroughPluginlib) {
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
@@ -35,6 +228,7 @@ TEST(Plugin, LoadsByNameThroughPluginlib) {
   ASSERT_NE(std::find(classes.begin(), classes.end(), "fruit_shape_completion/SuperellipsoidEstimator"), classes.end());
   std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
   ros::NodeHandle nh("~/plugin_test");
+  nh.setParam("superellipsoids_topic", "superellipsoids");
   plugin->initialize("plugin_test", nh, "world");
   EXPECT_EQ(plugin->name(), "plugin_test");
   // It works: a half-seen fruit in, a fit out.
@@ -81,6 +275,18 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
   }
   bad.setParam("shape/alpha", "not a number");
   EXPECT_THROW(loader.load(bad, "world"), std::runtime_error);
+  bad.setParam("shape/alpha", 0.01);
+  bad.setParam("shape/voxels_per_side", 64.5);
+  EXPECT_THROW(loader.load(bad, "world"), std::runtime_error);
+  bad.setParam("shape/voxels_per_side", 64);
+  bad.setParam("shape/alpah", 0.1);  // misspelt
+  try {
+    loader.load(bad, "world");
+    FAIL() << "an unknown key must throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("alpah"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cluster_tolerance"), std::string::npos) << e.what();  // valid keys listed
+  }
 }
 
 TEST(FruitPublisher, CloudsRoundTripAndLyingHeadersAreRefused) {
@@ -141,10 +347,10 @@ TEST(PlannerNode, HeadlessEpisodePublishesFruitsMatchingTheTruth) {
   fruit_shape_completion::SuperellipsoidArray last;
   std::size_t markers = 0;
   ros::Subscriber sub = nh.subscribe<fruit_shape_completion::SuperellipsoidArray>(
-      "/roi_viewpoint_planner/superellipsoid/superellipsoids", 5,
+      "/sim_viewpoint_planner/superellipsoid/superellipsoids", 5,
       [&](const fruit_shape_completion::SuperellipsoidArrayConstPtr& m) { last = *m; });
   ros::Subscriber msub = nh.subscribe<visualization_msgs::MarkerArray>(
-      "/roi_viewpoint_planner/superellipsoid/fruit_markers", 5,
+      "/sim_viewpoint_planner/superellipsoid/fruit_markers", 5,
       [&](const visualization_msgs::MarkerArrayConstPtr& m) { markers = m->markers.size(); });
   sim::Scene scene;
   std::string err;

@@ -1,7 +1,9 @@
 #pragma once
 // The superellipsoid shape estimator: TSDF fruit map -> surface -> clusters -> fits ->
 // predicted unseen surface. Thread-safe: views may be inserted from one thread (sensor
-// callbacks) while another (the planner) asks for fruits and targets.
+// callbacks) while another (the planner) asks for fruits and targets. Queries read the last
+// update's results and never wait for a fit; a view inserted during a fit waits only for the
+// surface extraction.
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
@@ -41,6 +43,10 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   PointList extraTargets() const override;
   void reset() override;
 
+  // The fruit map as a file (TsdfMap::save/load); a failed load leaves the map unchanged.
+  bool saveMap(const std::string& path, std::string* error) const;
+  bool loadMap(const std::string& path, std::string* error);
+
   // Snapshots for display and tests.
   std::vector<FruitEstimate> estimates() const;
   PointList surface() const;
@@ -51,15 +57,20 @@ class SuperellipsoidEstimator : public ShapeEstimator {
 
  private:
   SuperellipsoidEstimatorParams params_;
-  mutable std::mutex mutex_;
+  // Lock order: fit_mutex_, then map_mutex_, then results_mutex_.
+  std::mutex fit_mutex_;  // one update at a time; guards pipeline_
+  FruitShapePipeline pipeline_;
+  mutable std::mutex map_mutex_;  // guards the members below up to results_mutex_
   TsdfMap map_;
   TsdfIntegrator integrator_;
-  FruitShapePipeline pipeline_;
-  PointList surface_;
   IntegrationReport last_;
-  double surface_seconds_ = 0.0;
   EstimatorStatus totals_;
   bool dirty_ = false;
+  mutable std::mutex results_mutex_;  // guards the last update's results below
+  std::vector<FruitEstimate> estimates_;
+  PointList surface_, targets_;
+  PipelineStats stats_;
+  double surface_seconds_ = 0.0;
 };
 
 }  // namespace planner

@@ -1,15 +1,20 @@
 #pragma once
 // Reads the superellipsoid estimator's parameters (every paper parameter) from a ROS namespace,
 // defaults from the core structs (config/shape_estimators.yaml lists them); a parameter of the
-// wrong type or value throws std::runtime_error naming it.
+// wrong type or value, or a key in the namespace that is neither an estimator parameter nor
+// one of `other_keys` (the caller's own), throws std::runtime_error naming it and the valid keys.
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 
 #include <ros/node_handle.h>
 
+#include <string>
+#include <vector>
+
 namespace fruit_shape_completion {
 namespace ros_io {
 
-planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh);
+planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
+                                                           const std::vector<std::string>& other_keys = {});
 
 }  // namespace ros_io
 }  // namespace fruit_shape_completion

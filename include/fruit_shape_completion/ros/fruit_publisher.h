@@ -1,8 +1,9 @@
 #pragma once
-// Publishes a shape estimator's state in a namespace: superellipsoids
-// (fruit_shape_completion/SuperellipsoidArray), fruit_markers (visualization_msgs/MarkerArray:
-// each fit as a triangle mesh plus an id/volume label), clusters (PointCloud2 coloured per
-// fruit), missing_surface and tsdf_surface (PointCloud2), all in the map frame.
+// Publishes a shape estimator's state: the superellipsoids as superellipsoid_msgs/
+// SuperellipsoidArray on the given topic (relative names resolve in the namespace), and in the
+// namespace fruit_markers (visualization_msgs/MarkerArray: each fit as a triangle mesh plus an
+// id/volume label), clusters (PointCloud2 coloured per fruit), missing_surface and tsdf_surface
+// (PointCloud2), all in the map frame and latched.
 #include <fruit_shape_completion/fruit_estimate.h>
 
 #include <ros/node_handle.h>
@@ -22,10 +23,15 @@ sensor_msgs::PointCloud2 toCloud(const PointList& points, const std::string& fra
 // Finite points of an xyz PointCloud2 (float32 x, y, z fields, as PCL and the upstream pipeline send); `non_finite` counts
 // the skipped ones. False with a message if the cloud has no x, y, z fields or is malformed.
 bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size_t* non_finite, std::string* error);
+// A cloud with ROI indices (as in pointcloud_roi_msgs/PointcloudWithRoi): `all` its finite points,
+// `selected` the finite points at the indices; `bad_indices` counts indices out of range or on
+// non-finite points. False with a message if the cloud is malformed.
+bool fromRoiCloud(const sensor_msgs::PointCloud2& msg, const std::vector<std::int32_t>& indices, PointList* all,
+                  PointList* selected, std::size_t* bad_indices, std::string* error);
 
 class FruitPublisher {
  public:
-  FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame);
+  FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic);
   void publish(const std::vector<FruitEstimate>& fruits, const PointList& surface, const ros::Time& stamp);
 
  private:

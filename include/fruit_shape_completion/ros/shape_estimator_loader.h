@@ -4,10 +4,13 @@
 // loads each with pluginlib, initialises it in <planner namespace>/<name>, and adds it to the
 // planner::ShapeEstimatorHost it owns. The upstream roi_viewpoint_planner needs only this and the
 // host: after its scan insertion: host().onView(view); before its ROI sampling: host().extraTargets().
+// Publishes each estimator's diagnostics (/diagnostics, once a second): error if disabled.
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/shape_estimator_plugin.h>
 
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <pluginlib/class_loader.hpp>
+#include <ros/timer.h>
 
 #include <memory>
 
@@ -21,13 +24,19 @@ class ShapeEstimatorLoader {
   // type or a plugin that refuses its parameters.
   void load(ros::NodeHandle& planner_nh, const std::string& map_frame);
   planner::ShapeEstimatorHost& host() { return host_; }
+  const planner::ShapeEstimatorHost& host() const { return host_; }
 
  private:
   // Order matters: members are destroyed in reverse, so the plugins (in host_) are destroyed
   // before the class loader unloads their libraries. Owning the host makes that impossible to get
   // wrong from outside.
+  void diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status) const;
+
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader_;
   planner::ShapeEstimatorHost host_;
+  std::vector<ShapeEstimatorPlugin*> plugins_;  // owned by host_, same order
+  std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
+  ros::Timer diagnostics_timer_;
 };
 
 }  // namespace ros_io

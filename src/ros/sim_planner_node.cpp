@@ -1,4 +1,5 @@
-// planner_node (node name roi_viewpoint_planner, as upstream): runs the viewpoint planner on a
+// sim_planner_node (node name sim_viewpoint_planner, so it cannot clash with upstream's
+// roi_viewpoint_planner): runs the package's viewpoint planner on a
 // simulated scene and hosts the shape-estimator plugins listed in ~shape_estimators. Publishes
 // the camera on tf (map frame -> camera), the ROI octree (~roi_octree) and the Old boxes
 // (~old_boxes) as markers, and the last full cloud (~scene_cloud). With ~live:=true it instead
@@ -82,7 +83,7 @@ visualization_msgs::MarkerArray boxMarkers(const std::vector<planner::RoiCluster
 }  // namespace
 
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "roi_viewpoint_planner");
+  ros::init(argc, argv, "sim_viewpoint_planner");
   ros::NodeHandle pnh("~");
   std::string map_frame = "world", scene_spec = "procedural", sensor_frame = "camera";
   double duration = 180.0, realtime_factor = 0.0;

@@ -1,0 +1,49 @@
+#pragma once
+// The glue for github.com/Eruvae/roi_viewpoint_planner: shape estimators fed with exactly what
+// ViewpointPlanner::registerPointcloudWithRoi holds (the PointcloudWithRoi's cloud, ROI
+// indices and transform) and returning their extra targets as octomap points, so that the
+// planner's patch (integration/roi_viewpoint_planner.patch) stays a few lines.
+#include <fruit_shape_completion/ros/shape_estimator_loader.h>
+
+#include <geometry_msgs/Transform.h>
+#include <octomap/octomap_types.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace ros_io {
+
+class RoiPlannerShapeEstimators {
+ public:
+  // Loads the estimators listed in `shape_estimators` of planner_nh, each initialised in
+  // planner_nh/<name>. Without the parameter there are none and every call does nothing.
+  // Throws std::runtime_error naming a bad entry or parameter.
+  RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh, const std::string& map_frame);
+  bool empty() const { return loader_.host().size() == 0; }
+
+  // One view. As upstream: if cloud.header.frame_id is the map frame, the points are in the map
+  // frame and `transform` is the sensor pose; otherwise `transform` takes the cloud to the map.
+  // Inserts it into every estimator and updates them (the fit runs here, in the caller's
+  // thread). Never throws: a malformed cloud or bad indices are logged, counted and skipped.
+  void insertView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
+                  const geometry_msgs::Transform& transform, double time = 0.0);
+  // The estimators' predicted, unseen fruit surface in the map frame. Does not wait for a fit.
+  std::vector<octomap::point3d> extraTargets() const;
+  void reset();
+
+  planner::ShapeEstimatorHost& host() { return loader_.host(); }
+  std::size_t viewsSkipped() const { return views_skipped_; }
+  std::size_t indicesSkipped() const { return indices_skipped_; }  // out of range or non-finite points
+
+ private:
+  ShapeEstimatorLoader loader_;
+  std::string map_frame_;
+  std::atomic<std::size_t> views_skipped_{0}, indices_skipped_{0};
+};
+
+}  // namespace ros_io
+}  // namespace fruit_shape_completion
