@@ -2,6 +2,9 @@
 #include <fruit_shape_completion/sim/fruit_mask.h>
 
 #include <octomap/octomap_types.h>
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
 
 #include <chrono>
 #include <cmath>
@@ -13,6 +16,44 @@ namespace fruit_shape_completion {
 namespace planner {
 
 namespace {
+
+// What pointcloud_roi publishes from a frame: the coloured cloud voxel-downsampled (PCL's
+// VoxelGrid: the centroid and mean colour of each leaf), and as fruit the leaves whose mean
+// colour passes the red test; mixed fruit/leaf voxels are judged by their mixed colour.
+sim::FrameClouds downsampledClouds(const sim::RgbdFrame& frame, double leaf) {
+  const PinholeCamera& cam = frame.camera;
+  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZRGB>);
+  for (int v = 0; v < frame.height; ++v)
+    for (int u = 0; u < frame.width; ++u) {
+      const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
+      const double z = frame.depth[px];
+      if (!std::isfinite(z)) continue;
+      const Eigen::Vector3d p = cam.position + cam.rotation * Eigen::Vector3d((u + 0.5 - 0.5 * cam.width) / f * z,
+                                                                             (v + 0.5 - 0.5 * cam.height) / f * z, z);
+      pcl::PointXYZRGB q;
+      q.x = static_cast<float>(p.x()), q.y = static_cast<float>(p.y()), q.z = static_cast<float>(p.z());
+      q.r = frame.rgb[3 * px], q.g = frame.rgb[3 * px + 1], q.b = frame.rgb[3 * px + 2];
+      cloud->push_back(q);
+    }
+  pcl::PointCloud<pcl::PointXYZRGB> down;
+  pcl::VoxelGrid<pcl::PointXYZRGB> grid;
+  grid.setInputCloud(cloud);
+  const float l = static_cast<float>(leaf);
+  grid.setLeafSize(l, l, l);
+  grid.filter(down);
+  std::vector<std::uint8_t> rgb;
+  rgb.reserve(3 * down.size());
+  for (const auto& q : down) rgb.insert(rgb.end(), {q.r, q.g, q.b});
+  const std::vector<std::uint8_t> red = sim::redMask(rgb, static_cast<int>(down.size()), 1);
+  sim::FrameClouds out;
+  for (std::size_t i = 0; i < down.size(); ++i) {
+    const Eigen::Vector3d p(down[i].x, down[i].y, down[i].z);
+    out.full.push_back(p);
+    if (red[i]) out.fruit.push_back(p);
+  }
+  return out;
+}
 
 using KeySet = std::unordered_set<std::uint64_t>;
 
@@ -78,6 +119,7 @@ std::string PlannerParams::problem() const {
   if (!(std::isfinite(duration) && duration >= 0.0)) return "duration must be >= 0";
   if (!finite_pos(view_cost)) return "view_cost must be > 0";
   if (!finite_pos(speed)) return "speed must be > 0";
+  if (!(input_voxel >= 0.0 && input_voxel < 1.0)) return "input_voxel must be in [0, 1) m";
   if (!finite_pos(min_view_distance) || !(max_view_distance >= min_view_distance) || !std::isfinite(max_view_distance))
     return "view distances must satisfy 0 < min_view_distance <= max_view_distance";
   if (candidates < 1) return "candidates must be >= 1";
@@ -134,7 +176,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     noise.seed = p.seed * 100003u + static_cast<unsigned>(view);
     const sim::RgbdFrame frame = renderer.render(cam, noise, p.render_threads);
     const std::vector<std::uint8_t> mask = sim::redMask(frame.rgb, frame.width, frame.height);
-    const sim::FrameClouds clouds = sim::cloudsFromFrame(frame, mask);
+    const sim::FrameClouds clouds =
+        p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel) : sim::cloudsFromFrame(frame, mask);
     seen_points += clouds.full.size();
     seen_fruit += clouds.fruit.size();
 

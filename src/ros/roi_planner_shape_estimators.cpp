@@ -12,35 +12,40 @@ RoiPlannerShapeEstimators::RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh
   loader_.load(planner_nh, map_frame);
 }
 
+bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
+               const geometry_msgs::Transform& transform, const std::string& map_frame, RoiView* view,
+               std::string* error) {
+  if (!fromRoiCloud(cloud, roi_indices, &view->all, &view->fruit, &view->bad_indices, error)) return false;
+  view->sensor_pose = tf2::transformToEigen(transform);
+  if (!view->sensor_pose.matrix().allFinite()) {
+    *error = "non-finite transform";
+    return false;
+  }
+  if (cloud.header.frame_id != map_frame) {
+    for (auto& p : view->all) p = view->sensor_pose * p;
+    for (auto& p : view->fruit) p = view->sensor_pose * p;
+  }
+  return true;
+}
+
 void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud,
                                            const std::vector<std::int32_t>& roi_indices,
                                            const geometry_msgs::Transform& transform, double time) {
   if (empty()) return;
   try {
-    PointList all, fruit;
-    std::size_t bad_indices = 0;
+    RoiView view;
     std::string error;
-    if (!fromRoiCloud(cloud, roi_indices, &all, &fruit, &bad_indices, &error)) {
+    if (!toRoiView(cloud, roi_indices, transform, map_frame_, &view, &error)) {
       ++views_skipped_;
       ROS_WARN("shape estimators: view skipped (%zu so far): %s", std::size_t(views_skipped_), error.c_str());
       return;
     }
-    if (bad_indices > 0) {
-      indices_skipped_ += bad_indices;
+    if (view.bad_indices > 0) {
+      indices_skipped_ += view.bad_indices;
       ROS_WARN_THROTTLE(10.0, "shape estimators: %zu ROI indices out of range or on NaN points skipped (%zu so far)",
-                        bad_indices, std::size_t(indices_skipped_));
+                        view.bad_indices, std::size_t(indices_skipped_));
     }
-    const Eigen::Isometry3d pose = tf2::transformToEigen(transform);
-    if (!pose.matrix().allFinite()) {
-      ++views_skipped_;
-      ROS_WARN("shape estimators: view skipped (%zu so far): non-finite transform", std::size_t(views_skipped_));
-      return;
-    }
-    if (cloud.header.frame_id != map_frame_) {
-      for (auto& p : all) p = pose * p;
-      for (auto& p : fruit) p = pose * p;
-    }
-    loader_.host().onView({fruit, all, pose, time});
+    loader_.host().onView({view.fruit, view.all, view.sensor_pose, time});
   } catch (const std::exception& e) {  // std::bad_alloc among them: drop this view, keep the planner running
     ++views_skipped_;
     ROS_ERROR("shape estimators: view dropped (%zu so far): %s", std::size_t(views_skipped_), e.what());

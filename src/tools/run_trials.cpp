@@ -1,7 +1,7 @@
 // run_trials: episodes of the viewpoint planner on a scene, Old (ROI octree boxes) and SE
 // (superellipsoids) evaluated side by side after every view, as in the paper's tables.
 //   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
-//              [--no-shape-targets] [--no-noise] --out DIR [--json] [--jobs J]
+//              [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR [--json] [--jobs J]
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
@@ -109,12 +109,14 @@ int main(int argc, char** argv) {
     else if (need("--seed")) base.seed = std::strtoul(argv[++i], nullptr, 10);
     else if (need("--out")) out = argv[++i];
     else if (need("--jobs")) jobs = std::atoi(argv[++i]);
+    else if (need("--input-voxel")) base.input_voxel = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--no-shape-targets")) base.shape_targets = false;
     else if (!std::strcmp(argv[i], "--no-noise")) base.depth_noise = false;
     else if (!std::strcmp(argv[i], "--json")) json = true;
     else {
       std::cerr << "usage: run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K] "
-                   "[--no-shape-targets] [--no-noise] --out DIR [--json] [--jobs J]\n";
+                   "[--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR [--json] [--jobs J]\n"
+                   "  --input-voxel M  feed the estimators pointcloud_roi's output: the cloud downsampled to M (0.01)\n";
       return 2;
     }
   }
@@ -197,7 +199,7 @@ int main(int argc, char** argv) {
   std::ostringstream body;
   body << "{\"scene\": " << jsonString(scene.name) << ", \"trials\": " << trials << ", \"duration_s\": "
        << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
-       << ", \"truth_fruits\": " << fruits.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
+       << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << fruits.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
        << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean);
   for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0)}) {
     body << ", \"" << label << "\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_true))

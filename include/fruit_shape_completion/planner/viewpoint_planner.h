@@ -35,6 +35,10 @@ struct PlannerParams {
   unsigned seed = 1;
   int render_threads = 1;
   bool depth_noise = true;
+  // > 0: the estimators get what pointcloud_roi publishes instead of the full-resolution fruit
+  // cloud: the coloured cloud voxel-downsampled to this leaf size [m] (upstream: 0.01), and the
+  // red test applied to the voxels' mean colours.
+  double input_voxel = 0.0;
   // Empty if usable, else what is wrong (runEpisode refuses to start with it).
   std::string problem() const;
 };

@@ -17,6 +17,19 @@
 namespace fruit_shape_completion {
 namespace ros_io {
 
+// A PointcloudWithRoi's view in the map frame. As upstream: if cloud.header.frame_id is the map
+// frame, the points are in the map frame and `transform` is the sensor pose; otherwise
+// `transform` takes the cloud to the map. False with a message for a malformed cloud or a
+// non-finite transform; `bad_indices` counts indices out of range or on NaN points.
+struct RoiView {
+  PointList fruit, all;
+  Eigen::Isometry3d sensor_pose = Eigen::Isometry3d::Identity();
+  std::size_t bad_indices = 0;
+};
+bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
+               const geometry_msgs::Transform& transform, const std::string& map_frame, RoiView* view,
+               std::string* error);
+
 class RoiPlannerShapeEstimators {
  public:
   // Loads the estimators listed in `shape_estimators` of planner_nh, each initialised in
@@ -25,9 +38,7 @@ class RoiPlannerShapeEstimators {
   RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh, const std::string& map_frame);
   bool empty() const { return loader_.host().size() == 0; }
 
-  // One view. As upstream: if cloud.header.frame_id is the map frame, the points are in the map
-  // frame and `transform` is the sensor pose; otherwise `transform` takes the cloud to the map.
-  // Inserts it into every estimator and updates them (the fit runs here, in the caller's
+  // One view (read as toRoiView reads it). Inserts it into every estimator and updates them (the fit runs here, in the caller's
   // thread). Never throws: a malformed cloud or bad indices are logged, counted and skipped.
   void insertView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
                   const geometry_msgs::Transform& transform, double time = 0.0);

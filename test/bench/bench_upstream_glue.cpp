@@ -1,0 +1,114 @@
+// The per-view update through the upstream-shaped glue, as the patched roi_viewpoint_planner
+// runs it: a PointcloudWithRoi as pointcloud_roi builds it (the coloured cloud at 1 cm, the red
+// voxels' indices, the cloud in the map frame, the camera pose as transform) read by
+// ros_io::toRoiView, then insert and update of the superellipsoid estimator. The view sequence
+// is a seeded scenario-2 episode (120 s) with depth noise. Needs no ROS master.
+// Run: scripts/run.sh bench --benchmark_filter=UpstreamGlue
+#include <benchmark/benchmark.h>
+#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/ros/fruit_publisher.h>
+#include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include <tf2_eigen/tf2_eigen.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <map>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+struct RoiMessage {
+  sensor_msgs::PointCloud2 cloud;
+  std::vector<std::int32_t> roi_indices;
+  geometry_msgs::Transform transform;
+};
+
+const std::vector<RoiMessage>& roiMessages() {
+  static const std::vector<RoiMessage> messages = [] {
+    std::vector<RoiMessage> out;
+    const char* env = std::getenv("FSC_SHARED_DATA");
+    sim::Scene scene;
+    std::string err;
+    if (!sim::loadSceneSpec(std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml", &scene, &err))
+      sim::loadSceneSpec("procedural", &scene, &err);
+    std::vector<int> triangle_fruit;
+    const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
+    planner::PlannerParams params;
+    params.duration = 120.0;
+    params.seed = 3;
+    params.input_voxel = 0.01;  // what pointcloud_roi publishes
+    const planner::SceneTruth truth = planner::makeSceneTruth(fruits, params.octree_resolution);
+    const sim::RgbdRenderer renderer(scene, triangle_fruit);
+    planner::ShapeEstimatorHost host;
+    planner::runEpisode(scene, renderer, truth, host, params,
+                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
+                            const sim::FrameClouds& clouds) {
+                          RoiMessage m;
+                          m.cloud = ros_io::toCloud(clouds.full, "world", ros::Time(0));
+                          std::map<std::array<double, 3>, std::int32_t> index;
+                          for (std::size_t i = 0; i < clouds.full.size(); ++i)
+                            index[{clouds.full[i].x(), clouds.full[i].y(), clouds.full[i].z()}] = static_cast<std::int32_t>(i);
+                          for (const auto& p : clouds.fruit) m.roi_indices.push_back(index.at({p.x(), p.y(), p.z()}));
+                          Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+                          pose.linear() = cam.rotation;
+                          pose.translation() = cam.position;
+                          m.transform = tf2::eigenToTransform(pose).transform;
+                          out.push_back(std::move(m));
+                          return true;
+                        });
+    return out;
+  }();
+  return messages;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
+  return v[k];
+}
+
+}  // namespace
+
+static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
+  const auto& messages = roiMessages();
+  if (messages.empty()) {
+    state.SkipWithError("the recorded episode has no views");
+    return;
+  }
+  std::vector<double> per_view_ms, read_ms;
+  std::size_t fruits = 0, points = 0;
+  for (auto _ : state) {
+    planner::SuperellipsoidEstimator estimator;
+    for (const auto& m : messages) {
+      const auto t0 = std::chrono::steady_clock::now();
+      ros_io::RoiView view;
+      std::string error;
+      if (!ros_io::toRoiView(m.cloud, m.roi_indices, m.transform, "world", &view, &error)) {
+        state.SkipWithError(error.c_str());
+        return;
+      }
+      const auto t1 = std::chrono::steady_clock::now();
+      estimator.insertView({view.fruit, view.all, view.sensor_pose, 0.0});
+      estimator.update();
+      const auto t2 = std::chrono::steady_clock::now();
+      read_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+      per_view_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t0).count());
+      points += view.fruit.size();
+    }
+    fruits = estimator.fruits().size();
+  }
+  state.counters["views"] = static_cast<double>(messages.size());
+  state.counters["median_ms"] = quantile(per_view_ms, 0.5);
+  state.counters["p95_ms"] = quantile(per_view_ms, 0.95);
+  state.counters["read_median_ms"] = quantile(read_ms, 0.5);
+  state.counters["fruit_points"] = static_cast<double>(points) / static_cast<double>(per_view_ms.size());
+  state.counters["fruits"] = static_cast<double>(fruits);
+}
+BENCHMARK(BM_PerViewUpdateUpstreamGlue)->Unit(benchmark::kMillisecond)->Iterations(3);
