@@ -1,4 +1,8 @@
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <fruit_shape_completion/FilePath.h>
 #include <fruit_shape_completion/SuperellipsoidArray.h>
+#include <std_srvs/Empty.h>
+#include <unistd.h>
 #include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
@@ -14,6 +18,7 @@
 #include <pcl/point_types.h>
 #include <pcl_conversions/pcl_conversions.h>
 #include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <topic_tools/shape_shifter.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -220,6 +225,53 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
   }
   ASSERT_GT(seen, 100);
   EXPECT_GT(on_surface, 0.8 * seen);
+
+  // Diagnostics: the estimator is running and reports its map.
+  diagnostic_msgs::DiagnosticStatus diag;
+  ros::Subscriber dsub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
+        for (const auto& st : a->status)
+          if (st.name.find("shape estimator superellipsoid") != std::string::npos) diag = st;
+      });
+  ASSERT_TRUE(waitFor([&] { return !diag.name.empty(); }, 10.0));
+  EXPECT_EQ(diag.level, diagnostic_msgs::DiagnosticStatus::OK) << diag.message;
+  bool has_blocks = false;
+  for (const auto& kv : diag.values) has_blocks |= kv.key == "map blocks" && kv.value.rfind("0 ", 0) != 0;
+  EXPECT_TRUE(has_blocks);
+
+  // save_map, clear_map (node-wide), load_map: the fruit comes back from the file.
+  const std::string file = "/tmp/fsc_rostest_map_" + std::to_string(::getpid()) + ".tsdf";
+  fruit_shape_completion::FilePath save, load;
+  save.request.file_path = load.request.file_path = file;
+  ASSERT_TRUE(ros::service::call("/fruit_mapping_node/superellipsoid/save_map", save));
+  EXPECT_TRUE(save.response.success) << save.response.message;
+  std_srvs::Empty clear;
+  ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
+  ASSERT_TRUE(waitFor([&] {
+    if (!last) return false;
+    std::vector<std::uint8_t> bytes(last->size());
+    ros::serialization::OStream out(bytes.data(), bytes.size());
+    last->write(out);
+    ros::serialization::IStream in(bytes.data(), bytes.size());
+    ros::serialization::deserialize(in, arr);
+    return arr.superellipsoids.empty();
+  }, 10.0)) << "clear_map left fruits";
+  ASSERT_TRUE(ros::service::call("/fruit_mapping_node/superellipsoid/load_map", load));
+  EXPECT_TRUE(load.response.success) << load.response.message;
+  ASSERT_TRUE(waitFor([&] {
+    std::vector<std::uint8_t> bytes(last->size());
+    ros::serialization::OStream out(bytes.data(), bytes.size());
+    last->write(out);
+    ros::serialization::IStream in(bytes.data(), bytes.size());
+    ros::serialization::deserialize(in, arr);
+    return arr.superellipsoids.size() == 1;
+  }, 10.0)) << "load_map did not bring the fruit back";
+  EXPECT_LT((Eigen::Vector3d(arr.superellipsoids[0].tx, arr.superellipsoids[0].ty, arr.superellipsoids[0].tz) - s.truth.t).norm(), 0.01);
+  load.request.file_path = "/nonexistent/map.tsdf";
+  ASSERT_TRUE(ros::service::call("/fruit_mapping_node/superellipsoid/load_map", load));
+  EXPECT_FALSE(load.response.success);
+  EXPECT_NE(load.response.message.find("/nonexistent/map.tsdf"), std::string::npos) << load.response.message;
+  std::remove(file.c_str());
 }
 
 TEST(Plugin, LoadsByNameThroughPluginlib) {
@@ -246,6 +298,53 @@ TEST(Plugin, LoadsByNameThroughPluginlib) {
   plugin->update();
   ASSERT_EQ(plugin->fruits().size(), 1u);
   EXPECT_NEAR(plugin->fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
+  plugin.reset();
+}
+
+TEST(Plugin, FullResolutionFruitCloudTopicFeedsTheMapInsteadOfThePlannersViews) {
+  pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
+  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
+  ros::NodeHandle nh("~/fullres");
+  nh.setParam("superellipsoids_topic", "superellipsoids");
+  nh.setParam("fruit_cloud_topic", "fruit_cloud");
+  plugin->initialize("fullres", nh, "world");
+  const FruitOnALeaf s;
+  // A planner view is ignored: the topic feeds the map.
+  const auto coarse = roiCloud(s.scene, 1, s.cameras[0]);
+  PointList all, fruit;
+  std::size_t bad = 0;
+  std::string err;
+  ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
+  plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), 0.0});
+  plugin->update();
+  EXPECT_TRUE(plugin->fruits().empty());
+  // Full-resolution fruit points in the camera frames, poses on tf.
+  tf2_ros::StaticTransformBroadcaster tf;
+  ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("fruit_cloud", 10);
+  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0; }, 10.0));
+  std::vector<geometry_msgs::TransformStamped> poses;
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = s.cameras[i].rotation;
+    pose.translation() = s.cameras[i].position;
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(pose);
+    t.header.frame_id = "world";
+    t.child_frame_id = "fullres_camera_" + std::to_string(i);
+    poses.push_back(t);
+  }
+  tf.sendTransform(poses);
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    const DepthScan scan = renderDepth(s.scene, s.cameras[i], 0.0005, 5);
+    PointList local;
+    Eigen::Isometry3d pose = tf2::transformToEigen(poses[i].transform);
+    for (std::size_t k = 0; k < scan.points.size(); ++k)
+      if (scan.labels[k] == 0) local.push_back(pose.inverse() * scan.points[k]);
+    pub.publish(ros_io::toCloud(local, poses[i].child_frame_id, ros::Time(0)));
+  }
+  ASSERT_TRUE(waitFor([&] { return plugin->fruits().size() == 1; }, 30.0));
+  // The same bounds as for the 1 cm views of this fruit (RoiPlannerShapeEstimators test).
+  EXPECT_LT((plugin->fruits()[0].center() - s.truth.t).norm(), 0.01);
+  EXPECT_NEAR(plugin->fruits()[0].volume, s.truth.volume(), 0.25 * s.truth.volume());
   plugin.reset();
 }
 
