@@ -25,6 +25,8 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
   s.blocks = map_.blockCount();
   s.max_blocks = map_.params().maxBlocks();
   s.memory_mb = static_cast<double>(map_.memoryBytes()) / 1048576.0;
+  std::lock_guard<std::mutex> results_lock(results_mutex_);
+  for (const auto& f : estimates_) s.fruits += f.accepted ? 1 : 0;
   return s;
 }
 

@@ -21,21 +21,18 @@ namespace {
 // VoxelGrid: the centroid and mean colour of each leaf), and as fruit the leaves whose mean
 // colour passes the red test; mixed fruit/leaf voxels are judged by their mixed colour.
 sim::FrameClouds downsampledClouds(const sim::RgbdFrame& frame, double leaf) {
-  const PinholeCamera& cam = frame.camera;
-  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  std::vector<std::size_t> pixels;
+  const sim::FrameClouds all = sim::cloudsFromFrame(frame, {}, &pixels);
   pcl::PointCloud<pcl::PointXYZRGB>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZRGB>);
-  for (int v = 0; v < frame.height; ++v)
-    for (int u = 0; u < frame.width; ++u) {
-      const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
-      const double z = frame.depth[px];
-      if (!std::isfinite(z)) continue;
-      const Eigen::Vector3d p = cam.position + cam.rotation * Eigen::Vector3d((u + 0.5 - 0.5 * cam.width) / f * z,
-                                                                             (v + 0.5 - 0.5 * cam.height) / f * z, z);
-      pcl::PointXYZRGB q;
-      q.x = static_cast<float>(p.x()), q.y = static_cast<float>(p.y()), q.z = static_cast<float>(p.z());
-      q.r = frame.rgb[3 * px], q.g = frame.rgb[3 * px + 1], q.b = frame.rgb[3 * px + 2];
-      cloud->push_back(q);
-    }
+  cloud->reserve(all.full.size());
+  for (std::size_t i = 0; i < all.full.size(); ++i) {
+    const Eigen::Vector3d& p = all.full[i];
+    const std::size_t px = pixels[i];
+    pcl::PointXYZRGB q;
+    q.x = static_cast<float>(p.x()), q.y = static_cast<float>(p.y()), q.z = static_cast<float>(p.z());
+    q.r = frame.rgb[3 * px], q.g = frame.rgb[3 * px + 1], q.b = frame.rgb[3 * px + 2];
+    cloud->push_back(q);
+  }
   pcl::PointCloud<pcl::PointXYZRGB> down;
   pcl::VoxelGrid<pcl::PointXYZRGB> grid;
   grid.setInputCloud(cloud);

@@ -75,7 +75,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"points skipped (NaN/Inf, range)", std::to_string(s.points_skipped)},
             {"rays outside the map", std::to_string(s.rays_outside)},
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
-            {"fruits", std::to_string(estimator_->fruits().size())},
+            {"fruits", std::to_string(s.fruits)},
             {"seconds since the last update", since < 0 ? "never" : std::to_string(since)}};
   }
 

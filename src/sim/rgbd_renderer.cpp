@@ -169,7 +169,9 @@ bool RgbdRenderer::isClear(const Eigen::Vector3d& p, double radius) const {
   return true;
 }
 
-FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask) {
+FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask,
+                            std::vector<std::size_t>* full_pixels) {
+  if (full_pixels) full_pixels->clear();
   FrameClouds clouds;
   clouds.full.reserve(frame.depth.size());
   const PinholeCamera& cam = frame.camera;
@@ -182,6 +184,7 @@ FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8
       const Eigen::Vector3d c((u + 0.5 - 0.5 * cam.width) / f * z, (v + 0.5 - 0.5 * cam.height) / f * z, z);
       const Eigen::Vector3d p = cam.position + cam.rotation * c;
       clouds.full.push_back(p);
+      if (full_pixels) full_pixels->push_back(px);
       if (px < mask.size() && mask[px]) clouds.fruit.push_back(p);
     }
   return clouds;

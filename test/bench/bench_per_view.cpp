@@ -7,9 +7,8 @@
 // sensor pose of every view, with depth noise. Each iteration replays it into a fresh estimator.
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
-#include <fruit_shape_completion/planner/viewpoint_planner.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include "bench_episode.h"
 
 #include <algorithm>
 #include <chrono>
@@ -34,42 +33,15 @@ struct Recording {
 const Recording& recording() {
   static const Recording rec = [] {
     Recording r;
-    const char* env = std::getenv("FSC_SHARED_DATA");
-    const std::string file = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
-    sim::Scene scene;
-    std::string err;
-    r.scene = file;
-    if (!sim::loadSceneSpec(file, &scene, &err)) {
-      r.scene = "procedural";
-      sim::loadSceneSpec(r.scene, &scene, &err);
-    }
-    std::vector<int> triangle_fruit;
-    const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
-    planner::PlannerParams params;
-    params.duration = 120.0;
-    params.seed = 3;
-    const planner::SceneTruth truth = planner::makeSceneTruth(fruits, params.octree_resolution);
-    const sim::RgbdRenderer renderer(scene, triangle_fruit);
-    planner::ShapeEstimatorHost host;  // none: the sequence only records what the camera saw
-    planner::runEpisode(scene, renderer, truth, host, params,
-                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
-                            const sim::FrameClouds& clouds) {
-                          Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-                          pose.linear() = cam.rotation;
-                          pose.translation() = cam.position;
-                          r.views.push_back({clouds.fruit, pose});
-                          return true;
-                        });
+    r.scene = bench::recordEpisode(0.0, [&](const PinholeCamera& cam, const sim::FrameClouds& clouds) {
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.linear() = cam.rotation;
+      pose.translation() = cam.position;
+      r.views.push_back({clouds.fruit, pose});
+    });
     return r;
   }();
   return rec;
-}
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
-  return v[k];
 }
 
 }  // namespace
@@ -108,8 +80,8 @@ static void BM_PerViewUpdate(benchmark::State& state) {
     fruits = estimator.fruits().size();
   }
   state.counters["views"] = static_cast<double>(rec.views.size());
-  state.counters["median_ms"] = quantile(per_view_ms, 0.5);
-  state.counters["p95_ms"] = quantile(per_view_ms, 0.95);
+  state.counters["median_ms"] = bench::quantile(per_view_ms, 0.5);
+  state.counters["p95_ms"] = bench::quantile(per_view_ms, 0.95);
   state.counters["max_ms"] = *std::max_element(per_view_ms.begin(), per_view_ms.end());
   // Of which the TSDF integration, and its outlier filter and normals (mean per view).
   state.counters["integrate_ms"] = 1e3 * integrate_s / static_cast<double>(per_view_ms.size());

@@ -6,13 +6,12 @@
 // Run: scripts/run.sh bench --benchmark_filter=UpstreamGlue
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
-#include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
 
 #include <tf2_eigen/tf2_eigen.h>
+
+#include "bench_episode.h"
 
 #include <algorithm>
 #include <chrono>
@@ -32,46 +31,22 @@ struct RoiMessage {
 const std::vector<RoiMessage>& roiMessages() {
   static const std::vector<RoiMessage> messages = [] {
     std::vector<RoiMessage> out;
-    const char* env = std::getenv("FSC_SHARED_DATA");
-    sim::Scene scene;
-    std::string err;
-    if (!sim::loadSceneSpec(std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml", &scene, &err))
-      sim::loadSceneSpec("procedural", &scene, &err);
-    std::vector<int> triangle_fruit;
-    const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
-    planner::PlannerParams params;
-    params.duration = 120.0;
-    params.seed = 3;
-    params.input_voxel = 0.01;  // what pointcloud_roi publishes
-    const planner::SceneTruth truth = planner::makeSceneTruth(fruits, params.octree_resolution);
-    const sim::RgbdRenderer renderer(scene, triangle_fruit);
-    planner::ShapeEstimatorHost host;
-    planner::runEpisode(scene, renderer, truth, host, params,
-                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
-                            const sim::FrameClouds& clouds) {
-                          RoiMessage m;
-                          m.cloud = ros_io::toCloud(clouds.full, "world", ros::Time(0));
-                          std::map<std::array<double, 3>, std::int32_t> index;
-                          for (std::size_t i = 0; i < clouds.full.size(); ++i)
-                            index[{clouds.full[i].x(), clouds.full[i].y(), clouds.full[i].z()}] = static_cast<std::int32_t>(i);
-                          for (const auto& p : clouds.fruit) m.roi_indices.push_back(index.at({p.x(), p.y(), p.z()}));
-                          Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-                          pose.linear() = cam.rotation;
-                          pose.translation() = cam.position;
-                          m.transform = tf2::eigenToTransform(pose).transform;
-                          out.push_back(std::move(m));
-                          return true;
-                        });
+    bench::recordEpisode(0.01, [&](const PinholeCamera& cam, const sim::FrameClouds& clouds) {  // 1 cm, as pointcloud_roi
+      RoiMessage m;
+      m.cloud = ros_io::toCloud(clouds.full, "world", ros::Time(0));
+      std::map<std::array<double, 3>, std::int32_t> index;
+      for (std::size_t i = 0; i < clouds.full.size(); ++i)
+        index[{clouds.full[i].x(), clouds.full[i].y(), clouds.full[i].z()}] = static_cast<std::int32_t>(i);
+      for (const auto& p : clouds.fruit) m.roi_indices.push_back(index.at({p.x(), p.y(), p.z()}));
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.linear() = cam.rotation;
+      pose.translation() = cam.position;
+      m.transform = tf2::eigenToTransform(pose).transform;
+      out.push_back(std::move(m));
+    });
     return out;
   }();
   return messages;
-}
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
-  return v[k];
 }
 
 }  // namespace
@@ -105,9 +80,9 @@ static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
     fruits = estimator.fruits().size();
   }
   state.counters["views"] = static_cast<double>(messages.size());
-  state.counters["median_ms"] = quantile(per_view_ms, 0.5);
-  state.counters["p95_ms"] = quantile(per_view_ms, 0.95);
-  state.counters["read_median_ms"] = quantile(read_ms, 0.5);
+  state.counters["median_ms"] = bench::quantile(per_view_ms, 0.5);
+  state.counters["p95_ms"] = bench::quantile(per_view_ms, 0.95);
+  state.counters["read_median_ms"] = bench::quantile(read_ms, 0.5);
   state.counters["fruit_points"] = static_cast<double>(points) / static_cast<double>(per_view_ms.size());
   state.counters["fruits"] = static_cast<double>(fruits);
 }

@@ -63,6 +63,18 @@ std::string upstreamMd5(const std::string& type) {
   return md5;
 }
 
+// A received message's bytes read as a superellipsoid_msgs subscriber would read them
+// (ShapeShifter::instantiate() would refuse this package's type name).
+fruit_shape_completion::SuperellipsoidArray asSuperellipsoidArray(const topic_tools::ShapeShifter& msg) {
+  std::vector<std::uint8_t> bytes(msg.size());
+  ros::serialization::OStream out(bytes.data(), bytes.size());
+  msg.write(out);
+  ros::serialization::IStream in(bytes.data(), bytes.size());
+  fruit_shape_completion::SuperellipsoidArray arr;
+  ros::serialization::deserialize(in, arr);
+  return arr;
+}
+
 // A PointcloudWithRoi as pointcloud_roi builds it: the camera's coloured cloud in the map frame,
 // voxel-downsampled to 1 cm, the indices of its red points, the camera pose as the transform.
 // `in_camera_frame` instead keeps the cloud in the camera frame (the transform then takes it to
@@ -189,13 +201,7 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
   fruit_shape_completion::SuperellipsoidArray arr;
   ASSERT_TRUE(waitFor([&] {
     if (!last) return false;
-    // The bytes as a superellipsoid_msgs subscriber would read them (instantiate() would refuse
-    // this package's type name).
-    std::vector<std::uint8_t> bytes(last->size());
-    ros::serialization::OStream out(bytes.data(), bytes.size());
-    last->write(out);
-    ros::serialization::IStream in(bytes.data(), bytes.size());
-    ros::serialization::deserialize(in, arr);
+    arr = asSuperellipsoidArray(*last);
     return arr.superellipsoids.size() == 1 && last->getDataType() == ros_io::kUpstreamSuperellipsoidArrayType;
   }, 60.0)) << (last ? last->getDataType() : std::string("nothing received"));
   EXPECT_EQ(last->getMD5Sum(), ros::message_traits::md5sum<fruit_shape_completion::SuperellipsoidArray>());
@@ -249,21 +255,13 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
   ASSERT_TRUE(waitFor([&] {
     if (!last) return false;
-    std::vector<std::uint8_t> bytes(last->size());
-    ros::serialization::OStream out(bytes.data(), bytes.size());
-    last->write(out);
-    ros::serialization::IStream in(bytes.data(), bytes.size());
-    ros::serialization::deserialize(in, arr);
+    arr = asSuperellipsoidArray(*last);
     return arr.superellipsoids.empty();
   }, 10.0)) << "clear_map left fruits";
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/superellipsoid/load_map", load));
   EXPECT_TRUE(load.response.success) << load.response.message;
   ASSERT_TRUE(waitFor([&] {
-    std::vector<std::uint8_t> bytes(last->size());
-    ros::serialization::OStream out(bytes.data(), bytes.size());
-    last->write(out);
-    ros::serialization::IStream in(bytes.data(), bytes.size());
-    ros::serialization::deserialize(in, arr);
+    arr = asSuperellipsoidArray(*last);
     return arr.superellipsoids.size() == 1;
   }, 10.0)) << "load_map did not bring the fruit back";
   EXPECT_LT((Eigen::Vector3d(arr.superellipsoids[0].tx, arr.superellipsoids[0].ty, arr.superellipsoids[0].tz) - s.truth.t).norm(), 0.01);

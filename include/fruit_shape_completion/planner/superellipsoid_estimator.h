@@ -31,6 +31,7 @@ struct EstimatorStatus {
   std::size_t rays_over_budget = 0;  // partly dropped at the memory budget
   std::size_t blocks = 0, max_blocks = 0;
   double memory_mb = 0.0;
+  std::size_t fruits = 0;  // accepted at the last update
 };
 
 class SuperellipsoidEstimator : public ShapeEstimator {

@@ -58,7 +58,9 @@ class RgbdRenderer {
 };
 
 // Back-projects a frame's valid depth pixels: all of them, and those where mask is non-zero.
-FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask);
+// `full_pixels`, if given, receives the pixel index of each point of the full cloud.
+FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask,
+                            std::vector<std::size_t>* full_pixels = nullptr);
 
 }  // namespace sim
 }  // namespace fruit_shape_completion

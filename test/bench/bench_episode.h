@@ -1,0 +1,55 @@
+#pragma once
+// What the per-view benchmarks share: a seeded 120 s planner episode on scenario 2
+// (../shared/data; the procedural glasshouse when it is absent), with depth noise, whose views
+// are handed to a callback, and quantiles of per-view times.
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace bench {
+
+// Runs the episode; returns the scene it ran on. `input_voxel` as in PlannerParams.
+inline std::string recordEpisode(double input_voxel,
+                                 const std::function<void(const PinholeCamera&, const sim::FrameClouds&)>& on_view) {
+  const char* env = std::getenv("FSC_SHARED_DATA");
+  std::string name = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
+  sim::Scene scene;
+  std::string err;
+  if (!sim::loadSceneSpec(name, &scene, &err)) {
+    name = "procedural";
+    sim::loadSceneSpec(name, &scene, &err);
+  }
+  std::vector<int> triangle_fruit;
+  const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
+  planner::PlannerParams params;
+  params.duration = 120.0;
+  params.seed = 3;
+  params.input_voxel = input_voxel;
+  const planner::SceneTruth truth = planner::makeSceneTruth(fruits, params.octree_resolution);
+  const sim::RgbdRenderer renderer(scene, triangle_fruit);
+  planner::ShapeEstimatorHost host;  // none: the episode only records what the camera saw
+  planner::runEpisode(scene, renderer, truth, host, params,
+                      [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
+                          const sim::FrameClouds& clouds) {
+                        on_view(cam, clouds);
+                        return true;
+                      });
+  return name;
+}
+
+inline double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
+  return v[k];
+}
+
+}  // namespace bench
+}  // namespace fruit_shape_completion
