@@ -43,13 +43,42 @@ class NeighbourGrid {
     }
   }
 
+  // fn(i, j, squared distance) once for every unordered pair of distinct finite points within
+  // `radius` (<= the cell size): half the distance tests of forEachPoint, for symmetric
+  // relations (clustering, neighbour statistics).
+  template <typename Fn>
+  void forEachPair(double radius, Fn&& fn) const {
+    const double r2 = radius * radius;
+    Ranges ranges;
+    for (const auto& cell : cell_list_) {
+      const int n = forwardRanges(cell.first, &ranges);
+      for (int k = cell.second.first; k < cell.second.second; ++k) {
+        const Point& p = sorted_[static_cast<std::size_t>(k)];
+        const int i = order_[static_cast<std::size_t>(k)];
+        for (int m = k + 1; m < cell.second.second; ++m)
+          visitIfWithin(p, i, m, r2, fn);
+        for (int r = 0; r < n; ++r)
+          for (int m = ranges[r].first; m < ranges[r].second; ++m)
+            visitIfWithin(p, i, m, r2, fn);
+      }
+    }
+  }
+
   // True if a point of the grid lies within `radius` (<= the cell size) of q.
   bool anyWithin(const Point& q, double radius) const;
 
  private:
   using Ranges = std::array<std::pair<int, int>, 27>;
+  template <typename Fn>
+  void visitIfWithin(const Point& p, int i, int m, double r2, Fn& fn) const {
+    const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
+    if (d2 <= r2) fn(i, order_[static_cast<std::size_t>(m)], d2);
+  }
   // The ranges of the occupied cells among `cell` and its 26 neighbours; returns their count.
   int neighbourRanges(const GridCell& cell, Ranges* ranges) const;
+  // The same for the 13 neighbours that come after `cell` (offsets lexicographically above
+  // zero): each pair of neighbouring cells is seen from one side only.
+  int forwardRanges(const GridCell& cell, Ranges* ranges) const;
 
   double inv_cell_;
   std::vector<int> order_;  // point indices grouped by cell

@@ -37,12 +37,9 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
     return i;
   };
   const NeighbourGrid grid(reps, params.tolerance);
-  grid.forEachPoint(params.tolerance, [&](int i, auto&& within) {
-    within([&](int j, double, const Point&) {
-      if (j <= i) return;
-      const int a = root(i), b = root(j);
-      if (a != b) parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
-    });
+  grid.forEachPair(params.tolerance, [&](int i, int j, double) {
+    const int a = root(i), b = root(j);
+    if (a != b) parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
   });
   // Components in the order of their first point.
   std::vector<int> slot(reps.size(), -1);

@@ -35,6 +35,17 @@ int NeighbourGrid::neighbourRanges(const GridCell& cell, Ranges* ranges) const {
   return n;
 }
 
+int NeighbourGrid::forwardRanges(const GridCell& cell, Ranges* ranges) const {
+  int n = 0;
+  for (std::int64_t dx = 0; dx <= 1; ++dx)
+    for (std::int64_t dy = dx == 0 ? 0 : -1; dy <= 1; ++dy)
+      for (std::int64_t dz = (dx == 0 && dy == 0) ? 1 : -1; dz <= 1; ++dz) {
+        const auto it = cells_.find(packCellKey(cell + GridCell(dx, dy, dz)));
+        if (it != cells_.end()) (*ranges)[static_cast<std::size_t>(n++)] = it->second;
+      }
+  return n;
+}
+
 bool NeighbourGrid::anyWithin(const Point& q, double radius) const {
   if (!q.allFinite() || sorted_.empty()) return false;
   const double r2 = radius * radius;

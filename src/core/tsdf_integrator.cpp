@@ -108,8 +108,42 @@ MergedView mergePerVoxel(const PointList& points, const Eigen::Vector3d& origin,
   return view;
 }
 
+// The k smallest squared distances seen so far for each point, in ascending order.
+class NearestDistances {
+ public:
+  NearestDistances(std::size_t points, int k) : k_(static_cast<std::size_t>(k)), d2_(points * k_), count_(points, 0) {}
+  void add(std::size_t i, double d2) {
+    double* row = &d2_[i * k_];
+    std::size_t n = count_[i];
+    if (n == k_) {
+      if (d2 >= row[k_ - 1]) return;
+      --n;
+    }
+    while (n > 0 && row[n - 1] > d2) {
+      row[n] = row[n - 1];
+      --n;
+    }
+    row[n] = d2;
+    count_[i] = std::min(count_[i] + 1, k_);
+  }
+  // The statistic of StatisticalOutlierRemoval: the mean distance to the k nearest, or the
+  // search radius for a point with fewer than k neighbours within it.
+  double meanDistance(std::size_t i, double search_radius) const {
+    if (count_[i] < k_) return search_radius;
+    double m = 0.0;
+    for (std::size_t j = 0; j < k_; ++j) m += std::sqrt(d2_[i * k_ + j]);
+    return m / static_cast<double>(k_);
+  }
+
+ private:
+  std::size_t k_;
+  std::vector<double> d2_;
+  std::vector<std::size_t> count_;
+};
+
 // One neighbourhood pass over the merged end points gives both the outlier flags and the
-// normals of the incidence-limited band (NaN where a point has none).
+// normals of the incidence-limited band (NaN where a point has none). Both relations are
+// symmetric, so each close pair is measured once and counted for both points.
 void analyseNeighbourhoods(const PointList& ends, const TsdfIntegratorParams& params, double voxel_size,
                            std::vector<char>* outlier, std::vector<Eigen::Vector3d>* normals) {
   const bool find_outliers = params.remove_outliers && ends.size() > static_cast<std::size_t>(params.outliers.k);
@@ -120,21 +154,33 @@ void analyseNeighbourhoods(const PointList& ends, const TsdfIntegratorParams& pa
   const double outlier_r2 = params.outliers.search_radius * params.outliers.search_radius;
   const double normal_r2 = np.radius * np.radius;
   const double radius = std::max(find_outliers ? params.outliers.search_radius : 0.0, find_normals ? np.radius : 0.0);
-  std::vector<double> statistic(find_outliers ? ends.size() : 0, std::numeric_limits<double>::quiet_NaN()), d2;
-  if (find_normals) normals->assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  NearestDistances nearest(find_outliers ? ends.size() : 0, params.outliers.k);
+  std::vector<NeighbourMoments> moments(find_normals ? ends.size() : 0);
+  for (NeighbourMoments& m : moments) m.add(Eigen::Vector3d::Zero());  // the point itself
   const NeighbourGrid grid(ends, radius);
-  grid.forEachPoint(radius, [&](int i, auto&& within) {
-    const Point& p = ends[static_cast<std::size_t>(i)];
-    NeighbourMoments moments;
-    d2.clear();
-    within([&](int j, double dd, const Point& q) {
-      if (find_outliers && j != i && dd <= outlier_r2) d2.push_back(dd);
-      if (find_normals && dd <= normal_r2) moments.add(q - p);
-    });
-    if (find_outliers) statistic[static_cast<std::size_t>(i)] = meanNeighbourDistance(&d2, params.outliers);
-    if (find_normals) (*normals)[static_cast<std::size_t>(i)] = moments.normal(np);
+  grid.forEachPair(radius, [&](int i, int j, double dd) {
+    const auto a = static_cast<std::size_t>(i), b = static_cast<std::size_t>(j);
+    if (find_outliers && dd <= outlier_r2) {
+      nearest.add(a, dd);
+      nearest.add(b, dd);
+    }
+    if (find_normals && dd <= normal_r2) {
+      const Eigen::Vector3d offset = ends[b] - ends[a];
+      moments[a].add(offset);
+      moments[b].add(-offset);
+    }
   });
-  if (find_outliers) *outlier = flagOutliers(statistic, params.outliers);
+  if (find_outliers) {
+    std::vector<double> statistic(ends.size(), std::numeric_limits<double>::quiet_NaN());
+    for (std::size_t i = 0; i < ends.size(); ++i)
+      if (ends[i].allFinite()) statistic[i] = nearest.meanDistance(i, params.outliers.search_radius);
+    *outlier = flagOutliers(statistic, params.outliers);
+  }
+  if (find_normals) {
+    normals->assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+    for (std::size_t i = 0; i < ends.size(); ++i)
+      if (ends[i].allFinite()) (*normals)[i] = moments[i].normal(np);
+  }
 }
 
 // Casts rays into the map: each updates the voxels it crosses within its band (from `tau`
