@@ -332,6 +332,8 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
   report.points_in = points.size();
   if (!origin.allFinite() || (pose != nullptr && !pose->matrix().allFinite())) {
     report.error = "sensor pose is not finite; view refused";
+  } else if (origin.cwiseAbs().maxCoeff() > kMaxCoordinate) {
+    report.error = "sensor position beyond 1e4 m; view refused";
   } else if (points.empty()) {
     report.error = "empty cloud; nothing to integrate";
   } else if (points.size() > params_.max_points) {

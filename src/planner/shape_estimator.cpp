@@ -1,6 +1,7 @@
 #include <fruit_shape_completion/planner/shape_estimator.h>
 
 #include <iostream>
+#include <new>
 #include <stdexcept>
 
 namespace fruit_shape_completion {
@@ -15,6 +16,8 @@ void ShapeEstimatorHost::add(std::unique_ptr<ShapeEstimator> estimator) {
   std::lock_guard<std::mutex> lock(mutex_);
   estimators_.push_back(std::move(estimator));
   enabled_.push_back(1);
+  last_error_.emplace_back();
+  out_of_memory_.push_back(0);
 }
 
 std::size_t ShapeEstimatorHost::size() const {
@@ -38,6 +41,37 @@ std::vector<std::string> ShapeEstimatorHost::errors() const {
   return errors_;
 }
 
+std::string ShapeEstimatorHost::lastError(std::size_t i) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return i < last_error_.size() ? last_error_[i] : std::string();
+}
+
+std::size_t ShapeEstimatorHost::outOfMemoryDrops(std::size_t i) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return i < out_of_memory_.size() ? out_of_memory_[i] : 0;
+}
+
+void ShapeEstimatorHost::report(const std::string& msg) const {
+  try {
+    report_error_(msg);
+  } catch (...) {  // a reporter that throws must not take the caller down either
+  }
+}
+
+void ShapeEstimatorHost::dropOutOfMemory(std::size_t i) const {
+  std::string msg;
+  std::size_t n;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    n = ++out_of_memory_[i];
+    msg = "shape estimator '" + estimators_[i]->name() + "': out of memory, call dropped (" + std::to_string(n) +
+          " so far); what it had mapped is kept";
+    last_error_[i] = msg;
+  }
+  // Every drop up to 10, then every 100th: a machine out of memory should not also flood the log.
+  if (n <= 10 || n % 100 == 0) report(msg);
+}
+
 void ShapeEstimatorHost::fail(std::size_t i, const std::string& what, bool always) const {
   std::string msg;
   {
@@ -46,11 +80,9 @@ void ShapeEstimatorHost::fail(std::size_t i, const std::string& what, bool alway
     enabled_[i] = 0;
     msg = "shape estimator '" + estimators_[i]->name() + "' disabled: " + what;
     errors_.push_back(msg);
+    last_error_[i] = msg;
   }
-  try {
-    report_error_(msg);
-  } catch (...) {  // a reporter that throws must not take the caller down either
-  }
+  report(msg);
 }
 
 template <typename Call>
@@ -64,6 +96,8 @@ bool ShapeEstimatorHost::guarded(std::size_t i, Call&& call) const {
   try {
     call(*e);
     return true;
+  } catch (const std::bad_alloc&) {
+    dropOutOfMemory(i);
   } catch (const std::exception& ex) {
     fail(i, ex.what());
   } catch (...) {

@@ -166,125 +166,131 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   for (int view = 0;; ++view) {
     t += p.view_cost;
     if (t > p.duration) break;
-    const auto wall0 = std::chrono::steady_clock::now();
-    const PinholeCamera cam = PinholeCamera::lookingAt(pos, look);
-    sim::DepthNoise noise;
-    noise.enabled = p.depth_noise;
-    noise.seed = p.seed * 100003u + static_cast<unsigned>(view);
-    const sim::RgbdFrame frame = renderer.render(cam, noise, p.render_threads);
-    const std::vector<std::uint8_t> mask = sim::redMask(frame.rgb, frame.width, frame.height);
-    const sim::FrameClouds clouds =
-        p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel) : sim::cloudsFromFrame(frame, mask);
-    seen_points += clouds.full.size();
-    seen_fruit += clouds.fruit.size();
+    // A view that fails (out of memory, a throwing callback) is dropped and counted; the
+    // episode goes on from where the camera is.
+    try {
+      const auto wall0 = std::chrono::steady_clock::now();
+      const PinholeCamera cam = PinholeCamera::lookingAt(pos, look);
+      sim::DepthNoise noise;
+      noise.enabled = p.depth_noise;
+      noise.seed = p.seed * 100003u + static_cast<unsigned>(view);
+      const sim::RgbdFrame frame = renderer.render(cam, noise, p.render_threads);
+      const std::vector<std::uint8_t> mask = sim::redMask(frame.rgb, frame.width, frame.height);
+      const sim::FrameClouds clouds =
+          p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel) : sim::cloudsFromFrame(frame, mask);
+      seen_points += clouds.full.size();
+      seen_fruit += clouds.fruit.size();
 
-    // The octree gets a pixel subsample (its 1 cm cells need no more); the estimators get all.
-    PointList octree_points;
-    std::vector<char> octree_fruit;
-    const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
-    for (int v = 0; v < frame.height; v += p.octree_pixel_step)
-      for (int u = 0; u < frame.width; u += p.octree_pixel_step) {
-        const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
-        const double z = frame.depth[px];
-        if (!std::isfinite(z)) continue;
-        octree_points.push_back(cam.position +
-                                cam.rotation * Eigen::Vector3d((u + 0.5 - 0.5 * cam.width) / f * z,
-                                                               (v + 0.5 - 0.5 * cam.height) / f * z, z));
-        octree_fruit.push_back(mask[px] ? 1 : 0);
-      }
-    tree.insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = cam.rotation;
-    pose.translation() = cam.position;
-    host.onView(ViewData{clouds.fruit, clouds.full, pose, t});
+      // The octree gets a pixel subsample (its 1 cm cells need no more); the estimators get all.
+      PointList octree_points;
+      std::vector<char> octree_fruit;
+      const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+      for (int v = 0; v < frame.height; v += p.octree_pixel_step)
+        for (int u = 0; u < frame.width; u += p.octree_pixel_step) {
+          const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
+          const double z = frame.depth[px];
+          if (!std::isfinite(z)) continue;
+          octree_points.push_back(cam.position +
+                                  cam.rotation * Eigen::Vector3d((u + 0.5 - 0.5 * cam.width) / f * z,
+                                                                 (v + 0.5 - 0.5 * cam.height) / f * z, z));
+          octree_fruit.push_back(mask[px] ? 1 : 0);
+        }
+      tree.insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.linear() = cam.rotation;
+      pose.translation() = cam.position;
+      host.onView(ViewData{clouds.fruit, clouds.full, pose, t});
 
-    ViewRecord rec;
-    rec.view = view;
-    rec.time = t;
-    rec.position = pos;
-    std::vector<FruitEstimate> old_fruits, se_fruits;
-    for (const auto& c : tree.roiClusters(10)) old_fruits.push_back(FruitEstimate::ofBox(c.center(), c.volume()));
-    se_fruits = host.fruits(0);
-    rec.old_true = evaluate(old_fruits, truth.enclosed);
-    rec.se_true = evaluate(se_fruits, truth.enclosed);
-    rec.old_se = evaluate(old_fruits, truth.se);
-    rec.se_se = evaluate(se_fruits, truth.se);
-    rec.old_box = evaluate(old_fruits, truth.box);
+      ViewRecord rec;
+      rec.view = view;
+      rec.time = t;
+      rec.position = pos;
+      std::vector<FruitEstimate> old_fruits, se_fruits;
+      for (const auto& c : tree.roiClusters(10)) old_fruits.push_back(FruitEstimate::ofBox(c.center(), c.volume()));
+      se_fruits = host.fruits(0);
+      rec.old_true = evaluate(old_fruits, truth.enclosed);
+      rec.se_true = evaluate(se_fruits, truth.enclosed);
+      rec.old_se = evaluate(old_fruits, truth.se);
+      rec.se_se = evaluate(se_fruits, truth.se);
+      rec.old_box = evaluate(old_fruits, truth.box);
 
-    // Targets and the next view.
-    PointList targets = tree.roiContourTargets();
-    rec.contour_targets = static_cast<int>(targets.size());
-    if (p.shape_targets) {
-      const PointList extra = host.extraTargets();
-      rec.shape_targets = static_cast<int>(extra.size());
-      targets.insert(targets.end(), extra.begin(), extra.end());
-    }
-    const KeySet interest = interestCells(tree, targets);
-    struct Candidate {
-      Eigen::Vector3d pos, look;
-      double gain;
-    };
-    std::vector<Candidate> cands;
-    auto tryCandidate = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& target, const KeySet* interest_set) {
-      if (!scene.workspace.contains(c) || (c - target).norm() < 1e-3 || !renderer.isClear(c, p.clearance)) return;
-      const PinholeCamera cc = PinholeCamera::lookingAt(c, target);
-      cands.push_back({c, target, viewGain(tree, cc, p, interest_set)});
-    };
-    std::normal_distribution<double> g(0.0, 1.0);
-    if (!targets.empty()) {
-      for (int i = 0; i < p.candidates; ++i) {
-        const Eigen::Vector3d& target = targets[static_cast<std::size_t>(unit(rng) * targets.size()) % targets.size()];
-        Eigen::Vector3d dir(g(rng), g(rng), g(rng));
-        dir.normalize();
-        const double dist = p.min_view_distance + unit(rng) * (p.max_view_distance - p.min_view_distance);
-        tryCandidate(target + dist * dir, target, &interest);
+      // Targets and the next view.
+      PointList targets = tree.roiContourTargets();
+      rec.contour_targets = static_cast<int>(targets.size());
+      if (p.shape_targets) {
+        const PointList extra = host.extraTargets();
+        rec.shape_targets = static_cast<int>(extra.size());
+        targets.insert(targets.end(), extra.begin(), extra.end());
       }
-    }
-    double best_gain = 0.0;
-    for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
-    if (best_gain <= 0.0) {  // exploration: anywhere in the workspace, looking at the plants
-      rec.exploration = true;
-      cands.clear();
-      for (int i = 0; i < p.candidates; ++i) {
-        const Eigen::Vector3d c = scene.workspace.box_min +
-                                  (scene.workspace.box_max - scene.workspace.box_min).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
-        const Eigen::Vector3d target =
-            scene.plants.empty() ? plants_center
-                                 : scene.plants[static_cast<std::size_t>(unit(rng) * scene.plants.size()) % scene.plants.size()].position +
-                                       Eigen::Vector3d(0, 0, 0.2 + 0.5 * unit(rng));
-        tryCandidate(c, target, nullptr);
+      const KeySet interest = interestCells(tree, targets);
+      struct Candidate {
+        Eigen::Vector3d pos, look;
+        double gain;
+      };
+      std::vector<Candidate> cands;
+      auto tryCandidate = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& target, const KeySet* interest_set) {
+        if (!scene.workspace.contains(c) || (c - target).norm() < 1e-3 || !renderer.isClear(c, p.clearance)) return;
+        const PinholeCamera cc = PinholeCamera::lookingAt(c, target);
+        cands.push_back({c, target, viewGain(tree, cc, p, interest_set)});
+      };
+      std::normal_distribution<double> g(0.0, 1.0);
+      if (!targets.empty()) {
+        for (int i = 0; i < p.candidates; ++i) {
+          const Eigen::Vector3d& target = targets[static_cast<std::size_t>(unit(rng) * targets.size()) % targets.size()];
+          Eigen::Vector3d dir(g(rng), g(rng), g(rng));
+          dir.normalize();
+          const double dist = p.min_view_distance + unit(rng) * (p.max_view_distance - p.min_view_distance);
+          tryCandidate(target + dist * dir, target, &interest);
+        }
       }
-      best_gain = 0.0;
+      double best_gain = 0.0;
       for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
-    }
-    rec.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
-    result.views.push_back(rec);
-    if (on_view && !on_view(rec, tree, cam, clouds)) {
-      if (result.message.empty()) result.message = "stopped by the caller";
-      break;
-    }
-    if (cands.empty() || best_gain <= 0.0) {
-      if (++views_without_gain >= 3) {
-        if (result.message.empty()) result.message = "no view in the workspace sees anything new; episode ended early";
+      if (best_gain <= 0.0) {  // exploration: anywhere in the workspace, looking at the plants
+        rec.exploration = true;
+        cands.clear();
+        for (int i = 0; i < p.candidates; ++i) {
+          const Eigen::Vector3d c = scene.workspace.box_min +
+                                    (scene.workspace.box_max - scene.workspace.box_min).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+          const Eigen::Vector3d target =
+              scene.plants.empty() ? plants_center
+                                   : scene.plants[static_cast<std::size_t>(unit(rng) * scene.plants.size()) % scene.plants.size()].position +
+                                         Eigen::Vector3d(0, 0, 0.2 + 0.5 * unit(rng));
+          tryCandidate(c, target, nullptr);
+        }
+        best_gain = 0.0;
+        for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
+      }
+      rec.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
+      result.views.push_back(rec);
+      if (on_view && !on_view(rec, tree, cam, clouds)) {
+        if (result.message.empty()) result.message = "stopped by the caller";
         break;
       }
-      // Stay, but turn to look elsewhere.
-      look = pos + Eigen::Vector3d(g(rng), g(rng), 0.2 * g(rng)).normalized();
-      continue;
-    }
-    views_without_gain = 0;
-    const Candidate* best = nullptr;
-    double best_u = -1e300;
-    for (const auto& c : cands) {
-      const double u = c.gain / best_gain - p.travel_weight * (c.pos - pos).norm();
-      if (u > best_u) {
-        best_u = u;
-        best = &c;
+      if (cands.empty() || best_gain <= 0.0) {
+        if (++views_without_gain >= 3) {
+          if (result.message.empty()) result.message = "no view in the workspace sees anything new; episode ended early";
+          break;
+        }
+        // Stay, but turn to look elsewhere.
+        look = pos + Eigen::Vector3d(g(rng), g(rng), 0.2 * g(rng)).normalized();
+        continue;
       }
+      views_without_gain = 0;
+      const Candidate* best = nullptr;
+      double best_u = -1e300;
+      for (const auto& c : cands) {
+        const double u = c.gain / best_gain - p.travel_weight * (c.pos - pos).norm();
+        if (u > best_u) {
+          best_u = u;
+          best = &c;
+        }
+      }
+      t += (best->pos - pos).norm() / p.speed;
+      pos = best->pos;
+      look = best->look;
+    } catch (const std::exception& e) {
+      if (result.dropped_views++ == 0) result.dropped_reason = e.what();
     }
-    t += (best->pos - pos).norm() / p.speed;
-    pos = best->pos;
-    look = best->look;
   }
   if (!result.views.empty() && result.message.empty()) {
     std::ostringstream os;

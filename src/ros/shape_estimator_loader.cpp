@@ -52,15 +52,15 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
 
 void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status) const {
   if (!host_.enabled(i)) {
-    std::string why;
-    for (const auto& e : host_.errors())
-      if (e.find("'" + plugins_[i]->name() + "'") != std::string::npos) why = e;
-    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "disabled: " + why);
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "disabled: " + host_.lastError(i));
     return;
   }
   try {
     for (const auto& kv : plugins_[i]->diagnostics()) status.add(kv.first, kv.second);
-    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
+    const std::size_t oom = host_.outOfMemoryDrops(i);
+    status.add("views dropped out of memory", oom);
+    if (oom > 0) status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; " + host_.lastError(i));
+    else status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
   } catch (const std::exception& e) {
     status.summary(diagnostic_msgs::DiagnosticStatus::WARN, std::string("no diagnostics: ") + e.what());
   }

@@ -17,6 +17,7 @@
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <atomic>
 #include <mutex>
 
 using namespace fruit_shape_completion;
@@ -113,26 +114,31 @@ int main(int argc, char** argv) {
     tf2_ros::TransformListener listener(buffer);
     std::mutex mutex;  // views arrive on callback threads; the host is shared with the planner
     const PointList none;
+    std::atomic<std::size_t> dropped{0};
     ros::Subscriber sub = pnh.subscribe<sensor_msgs::PointCloud2>("fruit_cloud", 2, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
-      PointList pts;
-      std::size_t bad = 0;
-      std::string err;
-      if (!ros_io::fromCloud(*msg, &pts, &bad, &err)) {
-        ROS_WARN("fruit_cloud skipped: %s", err.c_str());
-        return;
-      }
-      geometry_msgs::TransformStamped to_map, sensor;
       try {
-        to_map = buffer.lookupTransform(map_frame, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2));
-        sensor = buffer.lookupTransform(map_frame, sensor_frame, msg->header.stamp, ros::Duration(0.2));
-      } catch (const tf2::TransformException& e) {
-        ROS_WARN("fruit_cloud skipped: no transform (%s)", e.what());
-        return;
+        PointList pts;
+        std::size_t bad = 0;
+        std::string err;
+        if (!ros_io::fromCloud(*msg, &pts, &bad, &err)) {
+          ROS_WARN("fruit_cloud skipped: %s", err.c_str());
+          return;
+        }
+        geometry_msgs::TransformStamped to_map, sensor;
+        try {
+          to_map = buffer.lookupTransform(map_frame, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2));
+          sensor = buffer.lookupTransform(map_frame, sensor_frame, msg->header.stamp, ros::Duration(0.2));
+        } catch (const tf2::TransformException& e) {
+          ROS_WARN("fruit_cloud skipped: no transform (%s)", e.what());
+          return;
+        }
+        const Eigen::Isometry3d T = tf2::transformToEigen(to_map);
+        for (auto& p : pts) p = T * p;
+        std::lock_guard<std::mutex> lock(mutex);
+        host.onView(planner::ViewData{pts, none, tf2::transformToEigen(sensor), msg->header.stamp.toSec()});
+      } catch (const std::exception& e) {  // std::bad_alloc included: drop this cloud, keep running
+        ROS_WARN_THROTTLE(5.0, "fruit_cloud dropped (%zu so far): %s", ++dropped, e.what());
       }
-      const Eigen::Isometry3d T = tf2::transformToEigen(to_map);
-      for (auto& p : pts) p = T * p;
-      std::lock_guard<std::mutex> lock(mutex);
-      host.onView(planner::ViewData{pts, none, tf2::transformToEigen(sensor), msg->header.stamp.toSec()});
     });
     ros::AsyncSpinner spinner(2);
     spinner.start();
@@ -185,6 +191,8 @@ int main(int argc, char** argv) {
         return ros::ok();
       });
   if (!result.message.empty()) ROS_WARN("%s", result.message.c_str());
+  if (result.dropped_views > 0)
+    ROS_WARN("%d views dropped, the first: %s", result.dropped_views, result.dropped_reason.c_str());
   ROS_INFO("episode done: %zu views", result.views.size());
   if (!exit_when_done) ros::spin();
   return 0;

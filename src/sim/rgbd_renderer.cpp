@@ -21,6 +21,18 @@ struct RgbdRenderer::Impl {
 };
 
 RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit) : impl_(new Impl) {
+  // Embree aborts the process on extreme coordinates: refuse them here with a message.
+  for (const auto& v : scene.vertices)
+    if (!v.allFinite() || v.cwiseAbs().maxCoeff() > kMaxCoordinate)
+      throw std::invalid_argument("scene '" + scene.name + "' has a vertex that is not finite or lies beyond 1e4 m");
+  for (const auto& t : scene.triangles)
+    if ((t.array() < 0).any() || (t.array() >= static_cast<int>(scene.vertices.size())).any())
+      throw std::invalid_argument("scene '" + scene.name + "' has a triangle with a vertex index out of range");
+  if (scene.triangle_material.size() != scene.triangles.size())
+    throw std::invalid_argument("scene '" + scene.name + "': one material per triangle needed");
+  for (int m : scene.triangle_material)
+    if (m < 0 || m >= static_cast<int>(scene.materials.size()))
+      throw std::invalid_argument("scene '" + scene.name + "' has a triangle with an unknown material");
   impl_->device = rtcNewDevice("threads=1");
   if (impl_->device == nullptr) throw std::runtime_error("embree: cannot create a device");
   impl_->scene = rtcNewScene(impl_->device);
@@ -52,6 +64,10 @@ RgbdRenderer::~RgbdRenderer() {
 }
 
 RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise, int threads) const {
+  if (!cam.position.allFinite() || !cam.rotation.allFinite() || cam.position.cwiseAbs().maxCoeff() > kMaxCoordinate)
+    throw std::invalid_argument("camera pose is not finite or lies beyond 1e4 m; nothing rendered");
+  if (cam.width <= 0 || cam.height <= 0 || cam.width > 16384 || cam.height > 16384 || !(cam.hfov_rad > 0.0 && cam.hfov_rad < M_PI))
+    throw std::invalid_argument("camera image size must be 1-16384 pixels and its field of view 0-180 degrees");
   RgbdFrame frame;
   frame.camera = cam;
   frame.width = cam.width;
@@ -139,6 +155,10 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
 }
 
 double RgbdRenderer::castRay(const Eigen::Vector3d& o, const Eigen::Vector3d& dir, double max_range) const {
+  // Never hand Embree a ray it may abort on; such a ray sees nothing.
+  if (!o.allFinite() || !dir.allFinite() || !(dir.norm() > 0.0) || o.cwiseAbs().maxCoeff() > kMaxCoordinate ||
+      std::isnan(max_range))
+    return std::numeric_limits<double>::infinity();
   const Eigen::Vector3d d = dir.normalized();
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);

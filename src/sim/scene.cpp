@@ -40,7 +40,22 @@ Eigen::Vector3d vec3(const YAML::Node& n, const std::string& what) {
   if (!n || !n.IsSequence() || n.size() != 3) throw std::runtime_error(what + " must be a list of 3 numbers");
   Eigen::Vector3d v(n[0].as<double>(), n[1].as<double>(), n[2].as<double>());
   if (!v.allFinite()) throw std::runtime_error(what + " is not finite");
+  if (v.cwiseAbs().maxCoeff() > kMaxCoordinate) throw std::runtime_error(what + " lies beyond 1e4 m");
   return v;
+}
+
+double finiteNumber(const YAML::Node& n, const std::string& what, double limit) {
+  const double v = n.as<double>();
+  if (!std::isfinite(v) || std::abs(v) > limit)
+    throw std::runtime_error(what + " must be a finite number of magnitude at most " + std::to_string(limit));
+  return v;
+}
+
+// A placed vertex beyond kMaxCoordinate would reach the ray tracer (which aborts on it).
+bool placedVertexOk(const Eigen::Vector3f& v, const std::string& path, std::string* error) {
+  if (v.allFinite() && v.cwiseAbs().maxCoeff() <= kMaxCoordinate) return true;
+  *error = path + ": a vertex lies beyond 1e4 m once placed (mesh units or plant position wrong?)";
+  return false;
 }
 
 // Reads a mesh's triangles (world frame) with their material indices in `scene`.
@@ -82,6 +97,7 @@ bool readMesh(const std::string& path, const Eigen::Vector3d& position, double y
         return false;
       }
       vertices->push_back(R * p + t);
+      if (!placedVertexOk(vertices->back(), path, error)) return false;
     }
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
@@ -152,7 +168,7 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
       p.mesh = plants[i]["mesh"].as<std::string>();
       if (plants[i]["fruit_truth"]) p.fruit_truth = plants[i]["fruit_truth"].as<std::string>();
       p.position = vec3(plants[i]["position"], "plant " + std::to_string(i) + " position");
-      p.yaw = plants[i]["yaw"] ? plants[i]["yaw"].as<double>() : 0.0;
+      p.yaw = plants[i]["yaw"] ? finiteNumber(plants[i]["yaw"], "plant " + std::to_string(i) + " yaw", 1e3) : 0.0;
       scene.plants.push_back(p);
     }
     where = "workspace: ";
@@ -164,7 +180,7 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
       if (ws["reach_center"] || ws["reach_radius"]) {
         scene.workspace.has_reach = true;
         scene.workspace.reach_center = vec3(ws["reach_center"], "reach_center");
-        scene.workspace.reach_radius = ws["reach_radius"].as<double>();
+        scene.workspace.reach_radius = finiteNumber(ws["reach_radius"], "reach_radius", kMaxCoordinate);
         if (!(scene.workspace.reach_radius > 0)) throw std::runtime_error("reach_radius must be > 0");
       }
     }
@@ -200,7 +216,10 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
         Eigen::AngleAxisf(static_cast<float>(scene.plants[i].yaw), Eigen::Vector3f::UnitZ()).toRotationMatrix();
     const Eigen::Vector3f t = scene.plants[i].position.cast<float>();
     const int base = static_cast<int>(scene.vertices.size());
-    for (const auto& v : mesh->vertices) scene.vertices.push_back(R * v + t);
+    for (const auto& v : mesh->vertices) {
+      scene.vertices.push_back(R * v + t);
+      if (!placedVertexOk(scene.vertices.back(), file, error)) return false;
+    }
     for (std::size_t k = 0; k < mesh->triangles.size(); ++k) {
       scene.triangles.push_back(mesh->triangles[k] + Eigen::Vector3i::Constant(base));
       scene.triangle_material.push_back(mesh->material[k]);

@@ -60,8 +60,9 @@ int main(int argc, char** argv) {
     pos = Eigen::Vector3d(v[0], v[1], v[2]);
     look = Eigen::Vector3d(v[3], v[4], v[5]);
   }
-  if (!pos.allFinite() || !look.allFinite() || (look - pos).norm() < 1e-6) {
-    std::cerr << "render_view: the camera position and look-at point must be finite and distinct\n";
+  if (!pos.allFinite() || !look.allFinite() || (look - pos).norm() < 1e-6 ||
+      std::max(pos.cwiseAbs().maxCoeff(), look.cwiseAbs().maxCoeff()) > kMaxCoordinate) {
+    std::cerr << "render_view: the camera position and look-at point must be finite, distinct and within 1e4 m\n";
     return 2;
   }
   std::vector<int> triangle_fruit;

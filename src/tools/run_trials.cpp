@@ -160,6 +160,9 @@ int main(int argc, char** argv) {
       std::lock_guard<std::mutex> lock(log);
       std::cerr << "run_trials: trial " << k << ": " << results[k].views.size() << " views, " << wall[k]
                 << " s wall" << (results[k].message.empty() ? "" : " (" + results[k].message + ")") << "\n";
+      if (results[k].dropped_views > 0)
+        std::cerr << "run_trials: trial " << k << ": " << results[k].dropped_views
+                  << " views dropped, the first: " << results[k].dropped_reason << "\n";
     }
   };
   std::vector<std::thread> pool;
@@ -211,7 +214,9 @@ int main(int argc, char** argv) {
   std::string messages;
   for (const auto& r : results)
     if (!r.message.empty() && messages.find(r.message) == std::string::npos) messages += (messages.empty() ? "" : "; ") + r.message;
-  body << ", \"messages\": " << jsonString(messages) << "}\n";
+  int dropped = 0;
+  for (const auto& r : results) dropped += r.dropped_views;
+  body << ", \"dropped_views\": " << dropped << ", \"messages\": " << jsonString(messages) << "}\n";
   js << body.str();
   if (!js) {
     std::cerr << "run_trials: cannot write " << out << "/results.json\n";

@@ -362,12 +362,15 @@ TEST(TsdfMap, BadInputIsRefusedWithAMessageAndTheMapKept) {
   r = integ.integrate(map, {Eigen::Vector3d(0.1, 0, 0.5), Eigen::Vector3d(0.2, 0.01, 0.5)}, pose);
   EXPECT_EQ(r.out_of_range, 2u);
   EXPECT_EQ(map.observedVoxelCount(), observed);
-  // Beyond the map's extent (+-2^20 blocks, 268 km at 4 mm): refused, not folded onto the blocks
-  // near the origin that share its hash key.
-  const Eigen::Vector3d far(64.0 * 0.004 * (1 << 21), 0, 0);  // exactly one key period away
+  // A sensor beyond 1e4 m (here one key period of the map away, where it would fold onto the
+  // blocks near the origin that share its hash key): refused as a whole.
+  const Eigen::Vector3d far(64.0 * 0.004 * (1 << 21), 0, 0);
   r = integ.integrate(map, {far + Eigen::Vector3d(0.1, 0.6, 0.5)}, far + Eigen::Vector3d(0.1, 0.2, 0.5));
-  EXPECT_EQ(r.outside_map, 1u);
+  EXPECT_NE(r.error.find("beyond 1e4 m"), std::string::npos) << r.error;
   EXPECT_EQ(map.observedVoxelCount(), observed);
+  // Points beyond 1e4 m seen from a sane pose are out of range, counted.
+  r = integ.integrate(map, {Eigen::Vector3d(2e4, 0, 0.5), Eigen::Vector3d(0.1, 0.6, 0.5)}, Eigen::Vector3d(0.1, 0.2, 0.5));
+  EXPECT_EQ(r.out_of_range, 1u);
   TsdfIntegratorParams tiny;
   tiny.max_weight = 1e-30;
   EXPECT_THROW(TsdfIntegrator{tiny}, std::invalid_argument);

@@ -6,12 +6,35 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <new>
 #include <chrono>
 #include <mutex>
 #include <thread>
 
 using namespace fruit_shape_completion;
 using namespace fruit_shape_completion::planner;
+
+// Allocation failure injection: while armed (in the arming thread only), every allocation of
+// at least kFailFrom bytes through operator new throws std::bad_alloc, as on a machine out of
+// memory.
+namespace {
+thread_local bool fail_large_allocations = false;
+constexpr std::size_t kFailFrom = 16 * 1024;
+struct FailLargeAllocations {
+  FailLargeAllocations() { fail_large_allocations = true; }
+  ~FailLargeAllocations() { fail_large_allocations = false; }
+};
+}  // namespace
+
+void* operator new(std::size_t n) {
+  if (fail_large_allocations && n >= kFailFrom) throw std::bad_alloc();
+  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace {
 
@@ -192,6 +215,79 @@ TEST(ShapeEstimatorHost, AThrowingEstimatorIsDisabledNotFatal) {
   ASSERT_EQ(fruits.size(), 1u);
   EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.15 * truth.volume());
   EXPECT_FALSE(host.extraTargets().empty());  // the unseen back half
+}
+
+// Out of memory in a view: the host drops that view and counts it, the estimator stays
+// enabled with the fruit it had, and the next view goes in.
+TEST(ShapeEstimatorHost, OutOfMemoryDropsTheViewNotTheEstimatorOrItsMap) {
+  std::vector<std::string> reported;
+  ShapeEstimatorHost host([&](const std::string& m) { reported.push_back(m); });
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  std::mt19937 rng(5);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  auto view = [&](double angle, int seed) {
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(std::sin(angle), -std::cos(angle), 0);
+    scan.visible_fraction = 0.5;
+    scan.voxel = 0.002;
+    scan.seed = seed;
+    return scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+  };
+  auto poseFor = [&](double angle) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = truth.t + 0.4 * Eigen::Vector3d(std::sin(angle), -std::cos(angle), 0);
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+    return pose;
+  };
+  const PointList none, front = view(0.0, 1), back = view(M_PI, 2);
+  ASSERT_GT(front.size() * sizeof(Point), kFailFrom);  // the view's own copies must hit the limit
+  host.onView(ViewData{front, none, poseFor(0.0), 1.0});
+  const auto before = host.fruits(0);
+  ASSERT_EQ(before.size(), 1u);
+  {
+    FailLargeAllocations oom;
+    host.onView(ViewData{back, none, poseFor(M_PI), 2.0});
+  }
+  EXPECT_TRUE(host.enabled(0));
+  EXPECT_EQ(host.outOfMemoryDrops(0), 1u);
+  EXPECT_NE(host.lastError(0).find("out of memory"), std::string::npos) << host.lastError(0);
+  ASSERT_EQ(reported.size(), 1u);
+  EXPECT_TRUE(host.errors().empty());  // nothing was disabled
+  const auto kept = host.fruits(0);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_NEAR(kept[0].volume, before[0].volume, 1e-9);
+  host.onView(ViewData{back, none, poseFor(M_PI), 3.0});
+  const auto after = host.fruits(0);
+  ASSERT_EQ(after.size(), 1u);
+  // Seen from both sides now: closer to the truth than the half-seen fit.
+  EXPECT_LT(std::abs(after[0].volume - truth.volume()), std::abs(before[0].volume - truth.volume()) + 1e-9);
+  EXPECT_NEAR(after[0].volume, truth.volume(), 0.05 * truth.volume());
+}
+
+// A view of the planner loop that throws (here bad_alloc from the per-view callback) is dropped
+// and counted; the episode goes on.
+TEST(ViewpointPlanner, AViewThatRunsOutOfMemoryIsDroppedAndTheEpisodeGoesOn) {
+  SimulatedScene s("procedural:3");
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  PlannerParams p;
+  p.duration = 30;
+  int calls = 0;
+  const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, p,
+                                     [&](const ViewRecord&, const RoiOcTree&, const PinholeCamera&, const sim::FrameClouds&) {
+                                       if (++calls == 2) {
+                                         FailLargeAllocations oom;
+                                         std::vector<double> big(1 << 20);  // throws
+                                         return big.empty();
+                                       }
+                                       return true;
+                                     });
+  EXPECT_EQ(r.dropped_views, 1);
+  EXPECT_FALSE(r.dropped_reason.empty());
+  EXPECT_GE(r.views.size(), 4u);  // views after the failed one
+  EXPECT_GT(calls, 3);
+  EXPECT_TRUE(host.enabled(0));
+  EXPECT_FALSE(host.fruits(0).empty());
 }
 
 TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {

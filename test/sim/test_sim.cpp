@@ -4,7 +4,10 @@
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
+#include <limits>
+#include <stdexcept>
 #include <fstream>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -299,5 +302,62 @@ TEST(SceneFiles, BadFilesGiveAClearErrorNamingFileAndProblem) {
   EXPECT_NE(err.find("not found"), std::string::npos) << err;
   EXPECT_FALSE(loadSceneSpec("procedural:abc", &s, &err));
   EXPECT_NE(err.find("seed"), std::string::npos) << err;
+
+  // Extreme or non-finite coordinates never reach the ray tracer (Embree aborts on 1e20).
+  std::ofstream(dir + "/leaf.obj") << "mtllib leaf.mtl\nusemtl leaf\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(dir + "/leaf.mtl") << "newmtl leaf\nKd 0 1 0\n";
+  const std::string head = "materials: {leaf: {rgb: [1, 2, 3]}}\nplants:\n  - {mesh: leaf.obj, ";
+  const std::vector<std::pair<std::string, std::string>> extreme = {
+      {"position: [1e20, 0, 0]}\n", "beyond 1e4 m"},
+      {"position: [0, .nan, 0]}\n", "not finite"},
+      {"position: [0, 0, 0], yaw: .nan}\n", "yaw"},
+      {"position: [0, 0, 0], yaw: .inf}\n", "yaw"},
+      {"position: [0, 0, 0]}\nworkspace: {box_min: [0, 0, 0], box_max: [1, 1, 1e30]}\n", "beyond 1e4 m"},
+      {"position: [0, 0, 0]}\nworkspace: {box_min: [0, 0, 0], box_max: [1, 1, 1], reach_center: [0, 0, 0], reach_radius: .inf}\n",
+       "reach_radius"},
+      {"position: [0, 0, 0]}\ncamera_start: {position: [0, 0, -1e9], look_at: [0, 0, 0]}\n", "beyond 1e4 m"},
+      {"position: [9999.5, 0, 0], yaw: 0}\n", "vertex lies beyond 1e4 m"},  // the mesh reaches 10000.5
+  };
+  for (const auto& [tail, expected] : extreme) {
+    std::ofstream(dir + "/extreme.yaml") << head << tail;
+    EXPECT_FALSE(loadScene(dir + "/extreme.yaml", &s, &err)) << tail;
+    EXPECT_NE(err.find(expected), std::string::npos) << tail << " -> " << err;
+    EXPECT_TRUE(err.find("extreme.yaml") != std::string::npos || err.find("leaf.obj") != std::string::npos) << err;
+  }
   std::system(("rm -rf " + dir).c_str());
+}
+
+TEST(RgbdRenderer, ExtremeScenesAndCamerasAreRefusedNotPassedToEmbree) {
+  Scene scene;
+  scene.name = "toy";
+  scene.materials.push_back(SceneMaterial{});
+  scene.vertices = {Eigen::Vector3f(0, 0, 1), Eigen::Vector3f(1, 0, 1), Eigen::Vector3f(0, 1, 1)};
+  scene.triangles = {Eigen::Vector3i(0, 1, 2)};
+  scene.triangle_material = {0};
+  scene.triangle_plant = {0};
+  Scene far = scene;
+  far.vertices[1] = Eigen::Vector3f(1e20f, 0, 1);
+  EXPECT_THROW(RgbdRenderer(far, {}), std::invalid_argument);
+  Scene nan = scene;
+  nan.vertices[2].y() = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(RgbdRenderer(nan, {}), std::invalid_argument);
+  Scene bad_index = scene;
+  bad_index.triangles[0] = Eigen::Vector3i(0, 1, 3);
+  EXPECT_THROW(RgbdRenderer(bad_index, {}), std::invalid_argument);
+
+  const RgbdRenderer renderer(scene, {});
+  PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(0.2, 0.2, 0), Eigen::Vector3d(0.2, 0.2, 1));
+  cam.width = 64;
+  cam.height = 48;
+  EXPECT_NO_THROW(renderer.render(cam));
+  PinholeCamera far_cam = cam;
+  far_cam.position = Eigen::Vector3d(1e20, 0, 0);
+  EXPECT_THROW(renderer.render(far_cam), std::invalid_argument);
+  PinholeCamera nan_cam = cam;
+  nan_cam.rotation(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(renderer.render(nan_cam), std::invalid_argument);
+  EXPECT_TRUE(std::isinf(renderer.castRay(Eigen::Vector3d(1e20, 0, 0), Eigen::Vector3d(0, 0, 1), 10.0)));
+  EXPECT_TRUE(std::isinf(renderer.castRay(Eigen::Vector3d(0.2, 0.2, 0), Eigen::Vector3d::Constant(NAN), 10.0)));
+  EXPECT_NEAR(renderer.castRay(Eigen::Vector3d(0.2, 0.2, 0), Eigen::Vector3d(0, 0, 1), 10.0), 1.0, 1e-5);
+  EXPECT_FALSE(renderer.isClear(Eigen::Vector3d(0.2, 0.2, 0.9), 0.2));
 }

@@ -37,7 +37,8 @@ class ShapeEstimator {
 };
 
 // Owns the estimators; an estimator that throws is disabled with a message, never taking the
-// planner down. Every method may be called from several threads at once (add() before the
+// planner down. Running out of memory is different: the call is dropped, counted and reported,
+// and the estimator stays enabled with what it had (the next, smaller view may fit). Every method may be called from several threads at once (add() before the
 // first view). The estimators are called outside the host's lock: a long fit in one thread
 // does not block queries of the host's state in another.
 class ShapeEstimatorHost {
@@ -57,6 +58,9 @@ class ShapeEstimatorHost {
   ShapeEstimator& estimator(std::size_t i) const;  // i < size()
   bool enabled(std::size_t i) const;
   std::vector<std::string> errors() const;
+  // The last error of estimator i ("" if none), and how many of its calls ran out of memory.
+  std::string lastError(std::size_t i) const;
+  std::size_t outOfMemoryDrops(std::size_t i) const;
   // Resets every estimator and re-enables those whose reset succeeds.
   void reset();
 
@@ -64,7 +68,11 @@ class ShapeEstimatorHost {
   // Disables estimator i and records and reports `what`; unless `always`, only if it was still
   // enabled (two threads failing at once give one message).
   void fail(std::size_t i, const std::string& what, bool always = false) const;
-  // Runs call(estimator i); if it throws, disables the estimator with the message and returns false.
+  // Counts and reports a call of estimator i that ran out of memory.
+  void dropOutOfMemory(std::size_t i) const;
+  void report(const std::string& msg) const;
+  // Runs call(estimator i); if it throws, disables the estimator with the message (or, out of
+  // memory, drops the call) and returns false.
   template <typename Call>
   bool guarded(std::size_t i, Call&& call) const;
 
@@ -73,6 +81,8 @@ class ShapeEstimatorHost {
   std::vector<std::unique_ptr<ShapeEstimator>> estimators_;  // only grows
   mutable std::vector<char> enabled_;
   mutable std::vector<std::string> errors_;
+  mutable std::vector<std::string> last_error_;      // per estimator
+  mutable std::vector<std::size_t> out_of_memory_;  // per estimator
 };
 
 }  // namespace planner

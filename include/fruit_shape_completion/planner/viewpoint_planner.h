@@ -59,6 +59,8 @@ struct EpisodeResult {
   std::vector<ViewRecord> views;
   std::string message;  // why it ended early or ran empty; empty if it ran normally
   int truth_fruits = 0;
+  int dropped_views = 0;       // views that threw and were skipped
+  std::string dropped_reason;  // the first one's exception
 };
 
 struct SceneTruth {

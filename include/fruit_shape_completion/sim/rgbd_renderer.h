@@ -39,17 +39,20 @@ struct FrameClouds {
 class RgbdRenderer {
  public:
   // `triangle_fruit`: per scene triangle, the fruit id (computeFruitTruth) or -1; may be empty.
+  // Throws std::invalid_argument for a vertex that is not finite or beyond kMaxCoordinate, a bad
+  // index or material (loadScene refuses such files before).
   RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit);
   ~RgbdRenderer();
   RgbdRenderer(const RgbdRenderer&) = delete;
   RgbdRenderer& operator=(const RgbdRenderer&) = delete;
 
-  // Renders one frame; `threads` rows-interleaved worker threads (1 or more).
+  // Renders one frame; `threads` rows-interleaved worker threads (1 or more). Throws
+  // std::invalid_argument for a pose that is not finite or beyond kMaxCoordinate.
   RgbdFrame render(const PinholeCamera& camera, const DepthNoise& noise = DepthNoise(), int threads = 2) const;
 
   // True if no geometry lies within `radius` of p (26 probe rays): a camera may stand there.
   bool isClear(const Eigen::Vector3d& p, double radius) const;
-  // Distance to the first hit along a ray, or infinity.
+  // Distance to the first hit along a ray, or infinity (also for a ray that is not finite).
   double castRay(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double max_range) const;
 
  private:
