@@ -8,6 +8,7 @@
 #include <pcl/io/ply_io.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -191,6 +192,23 @@ CloudFile readPly(const std::string& path) {
   return pointsOf(blob, path);
 }
 
+// "0,5 0,2 0,3": whitespace-separated columns whose numbers hold a comma between digits would
+// otherwise be split at the commas and read as other numbers.
+bool hasDecimalComma(const std::string& line) {
+  std::istringstream ls(line);
+  std::string tok;
+  int columns = 0;
+  bool comma_inside = false;
+  while (ls >> tok) {
+    ++columns;
+    for (std::size_t i = 1; i + 1 < tok.size(); ++i)
+      if (tok[i] == ',' && std::isdigit(static_cast<unsigned char>(tok[i - 1])) &&
+          std::isdigit(static_cast<unsigned char>(tok[i + 1])))
+        comma_inside = true;
+  }
+  return columns >= 2 && comma_inside;
+}
+
 CloudFile readText(const std::string& path) {
   std::ifstream in(path);
   if (!in) return fail(path, "cannot open file");
@@ -201,6 +219,11 @@ CloudFile readText(const std::string& path) {
     ++line_no;
     const auto first = line.find_first_not_of(" \t\r,");
     if (first == std::string::npos || line[first] == '#') continue;
+    if (hasDecimalComma(line)) {
+      std::ostringstream os;
+      os << "line " << line_no << ": decimal commas are not supported, use '.' ('" << line.substr(0, 80) << "')";
+      return fail(path, os.str());
+    }
     std::replace(line.begin(), line.end(), ',', ' ');
     std::istringstream ls(line);
     std::string tok[3];

@@ -121,7 +121,11 @@ int main(int argc, char** argv) {
         std::size_t bad = 0;
         std::string err;
         if (!ros_io::fromCloud(*msg, &pts, &bad, &err)) {
-          ROS_WARN("fruit_cloud skipped: %s", err.c_str());
+          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): %s", ++dropped, err.c_str());
+          return;
+        }
+        if (msg->header.frame_id.empty()) {
+          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): the cloud has no frame_id", ++dropped);
           return;
         }
         geometry_msgs::TransformStamped to_map, sensor;
@@ -129,7 +133,7 @@ int main(int argc, char** argv) {
           to_map = buffer.lookupTransform(map_frame, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2));
           sensor = buffer.lookupTransform(map_frame, sensor_frame, msg->header.stamp, ros::Duration(0.2));
         } catch (const tf2::TransformException& e) {
-          ROS_WARN("fruit_cloud skipped: no transform (%s)", e.what());
+          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): no transform (%s)", ++dropped, e.what());
           return;
         }
         const Eigen::Isometry3d T = tf2::transformToEigen(to_map);

@@ -100,7 +100,23 @@ TEST(CloudIo, TextWithExtraColumnsCommentsAndNaN) {
   const CloudFile g = readPointCloud(path);
   EXPECT_FALSE(g.ok());
   EXPECT_NE(g.error.find("line 2"), std::string::npos) << g.error;
+  // Decimal commas would split into other numbers: refused, naming the line; a comma list is fine.
+  writeFile(path, "0.1, 0.2, 0.3\n0,5 0,2 0,3\n");
+  const CloudFile comma = readPointCloud(path);
+  EXPECT_FALSE(comma.ok());
+  EXPECT_NE(comma.error.find("line 2"), std::string::npos) << comma.error;
+  EXPECT_NE(comma.error.find("decimal comma"), std::string::npos) << comma.error;
   std::remove(path.c_str());
+  // A NaN row in an ASCII PLY is kept as a non-finite point (counted downstream), not fatal.
+  const std::string ply = tempPath("nan.ply");
+  writeFile(ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                 "end_header\n0.1 0.2 0.3\nnan nan nan\n1 2 3\n");
+  const CloudFile h = readPointCloud(ply);
+  ASSERT_TRUE(h.ok()) << h.error;
+  ASSERT_EQ(h.points.size(), 3u);
+  EXPECT_FALSE(h.points[1].allFinite());
+  EXPECT_LT((h.points[2] - Eigen::Vector3d(1, 2, 3)).norm(), 1e-6);
+  std::remove(ply.c_str());
 }
 
 TEST(CloudIo, PcdAsciiAndMalformedFiles) {

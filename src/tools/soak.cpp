@@ -1,0 +1,133 @@
+// Soak test of the estimator as the planner hosts it: many views into one estimator, never
+// reset, sampling the process's resident memory. The views are recorded once from seeded
+// planner episodes on a scene and replayed in a loop, each replay with fresh depth noise (1 mm),
+// so the map keeps changing as under a camera that keeps looking.
+//   soak [--scene FILE|procedural[:SEED]] [--views N] [--episodes E] [--sample-every K] [--out F.csv]
+#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <random>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+double residentMb() {
+  std::ifstream statm("/proc/self/statm");
+  long pages = 0, resident = 0;
+  statm >> pages >> resident;
+  return static_cast<double>(resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+}
+
+struct RecordedView {
+  PointList fruit;
+  Eigen::Isometry3d pose;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string spec, out = "soak.csv";
+  long views = 10000, sample_every = 100;
+  int episodes = 4;
+  for (int i = 1; i < argc; ++i) {
+    auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
+    const char* v = nullptr;
+    if (!std::strcmp(argv[i], "--scene") && (v = next())) spec = v;
+    else if (!std::strcmp(argv[i], "--views") && (v = next())) views = std::atol(v);
+    else if (!std::strcmp(argv[i], "--episodes") && (v = next())) episodes = std::atoi(v);
+    else if (!std::strcmp(argv[i], "--sample-every") && (v = next())) sample_every = std::atol(v);
+    else if (!std::strcmp(argv[i], "--out") && (v = next())) out = v;
+    else {
+      std::cerr << "usage: soak [--scene FILE|procedural[:SEED]] [--views N] [--episodes E] [--sample-every K] [--out F.csv]\n";
+      return 2;
+    }
+  }
+  if (views < 1 || episodes < 1 || sample_every < 1) {
+    std::cerr << "soak: --views, --episodes and --sample-every must be positive\n";
+    return 2;
+  }
+  if (spec.empty()) {
+    const char* env = std::getenv("FSC_SHARED_DATA");
+    spec = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
+  }
+  sim::Scene scene;
+  std::string err;
+  if (!sim::loadSceneSpec(spec, &scene, &err)) {
+    std::cerr << "soak: " << err << "\n";
+    return 1;
+  }
+  std::vector<int> triangle_fruit;
+  const auto truth_fruits = sim::computeFruitTruth(scene, &triangle_fruit);
+  const sim::RgbdRenderer renderer(scene, triangle_fruit);
+  std::vector<RecordedView> recorded;
+  for (int e = 0; e < episodes; ++e) {
+    planner::PlannerParams params;
+    params.seed = 11 + static_cast<unsigned>(e);
+    const planner::SceneTruth truth = planner::makeSceneTruth(truth_fruits, params.octree_resolution);
+    planner::ShapeEstimatorHost none;
+    planner::runEpisode(scene, renderer, truth, none, params,
+                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
+                            const sim::FrameClouds& clouds) {
+                          Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+                          pose.linear() = cam.rotation;
+                          pose.translation() = cam.position;
+                          recorded.push_back({clouds.fruit, pose});
+                          return true;
+                        });
+  }
+  if (recorded.empty()) {
+    std::cerr << "soak: the episodes recorded no views\n";
+    return 1;
+  }
+  std::cerr << "soak: " << recorded.size() << " recorded views of " << scene.name << "; replaying " << views
+            << " into one estimator\n";
+
+  planner::ShapeEstimatorHost host;
+  auto estimator = std::make_unique<planner::SuperellipsoidEstimator>();
+  const planner::SuperellipsoidEstimator& se = *estimator;
+  host.add(std::move(estimator));
+  std::ofstream csv(out);
+  csv << "view,rss_mb,map_mb,blocks,fruits,view_ms\n";
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.001);
+  const PointList no_full;
+  const double rss_start = residentMb();
+  double rss_max = rss_start, rss_at_tenth = 0.0, slowest_ms = 0.0;
+  PointList noisy;
+  for (long v = 0; v < views; ++v) {
+    const RecordedView& rv = recorded[static_cast<std::size_t>(v) % recorded.size()];
+    noisy = rv.fruit;
+    for (auto& p : noisy) p += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    const auto t0 = std::chrono::steady_clock::now();
+    host.onView(planner::ViewData{noisy, no_full, rv.pose, static_cast<double>(v)});
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    slowest_ms = std::max(slowest_ms, ms);
+    if ((v + 1) % sample_every == 0 || v + 1 == views) {
+      const double rss = residentMb();
+      rss_max = std::max(rss_max, rss);
+      if (rss_at_tenth == 0.0 && v + 1 >= views / 10) rss_at_tenth = rss;
+      const planner::EstimatorStatus st = se.status();
+      csv << v + 1 << "," << rss << "," << st.memory_mb << "," << st.blocks << "," << st.fruits << "," << ms << "\n";
+      std::fprintf(stderr, "soak: view %ld: RSS %.1f MB, map %.1f MB in %zu blocks, %zu fruits\n", v + 1, rss,
+                   st.memory_mb, st.blocks, st.fruits);
+    }
+  }
+  const double rss_end = residentMb();
+  std::printf("soak: %ld views: RSS %.1f MB at the start, %.1f MB after a tenth, %.1f MB at the end (max %.1f); "
+              "slowest view %.0f ms; estimator %s; per-sample figures in %s\n",
+              views, rss_start, rss_at_tenth, rss_end, rss_max, slowest_ms,
+              host.enabled(0) ? "enabled" : ("disabled: " + host.lastError(0)).c_str(), out.c_str());
+  return host.enabled(0) ? 0 : 1;
+}
