@@ -94,7 +94,8 @@ const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
 bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
   // Block keys hold 21 bits per axis: beyond +-2^20 blocks two places would share a block.
   const std::int64_t limit = static_cast<std::int64_t>(params_.voxels_per_side) * ((std::int64_t(1) << 20) - 1);
-  return (origin.array().abs() <= limit).all();
+  // No abs(): abs(INT64_MIN) is undefined and in practice stays negative.
+  return (origin.array() >= -limit).all() && (origin.array() <= limit).all();
 }
 
 TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
@@ -198,6 +199,9 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
   if (!get(magic, 8) || std::memcmp(magic, kMagic, 8) != 0) return fail("not a TSDF map file (bad magic)");
   if (!get(&version, 4) || version != 1) return fail("unsupported TSDF map file version");
   if (!get(&voxel_size, 8) || !get(&vps, 4) || !get(&count, 8)) return fail("truncated header");
+  // A file's block costs vps^3 voxels of memory for as little as 12 bytes of file: a block side
+  // beyond 128 (16 MiB a block) is no map this package writes.
+  if (vps > 128) return fail("bad header: voxels_per_side " + std::to_string(vps) + " exceeds 128");
   TsdfMapParams p = params_;
   p.voxel_size = voxel_size;
   p.voxels_per_side = static_cast<int>(vps);

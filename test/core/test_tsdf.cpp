@@ -288,6 +288,23 @@ TEST(TsdfMap, SaveAndLoadRestoreTheMapAndRefuseBrokenFiles) {
     io2.close();
     EXPECT_FALSE(loaded.load(path, &err));
     EXPECT_NE(err.find("voxel_size"), std::string::npos) << err;
+    // A header asking for 512-voxel blocks (1 GiB each) and an INT64_MIN block origin.
+    ASSERT_TRUE(far.save(path, &err)) << err;
+    std::fstream io3(path, std::ios::in | std::ios::out | std::ios::binary);
+    const std::uint32_t side = 512;
+    io3.seekp(8 + 4 + 8);
+    io3.write(reinterpret_cast<const char*>(&side), 4);
+    io3.close();
+    EXPECT_FALSE(loaded.load(path, &err));
+    EXPECT_NE(err.find("exceeds 128"), std::string::npos) << err;
+    ASSERT_TRUE(far.save(path, &err)) << err;
+    std::fstream io4(path, std::ios::in | std::ios::out | std::ios::binary);
+    const std::int64_t lowest = std::numeric_limits<std::int64_t>::min();
+    io4.seekp(8 + 4 + 8 + 4 + 8);
+    io4.write(reinterpret_cast<const char*>(&lowest), 8);
+    io4.close();
+    EXPECT_FALSE(loaded.load(path, &err));
+    EXPECT_NE(err.find("out of range"), std::string::npos) << err;
   }
   EXPECT_EQ(loaded.observedVoxelCount(), before);
   std::remove(path.c_str());
