@@ -87,6 +87,7 @@ std::string checkPcdHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
   std::vector<std::uint64_t> sizes, counts;
+  std::vector<std::string> fields, types;
   std::uint64_t width = 1, height = 1, points = 0;
   bool has_points = false, has_width = false;
   std::string data;
@@ -104,7 +105,10 @@ std::string checkPcdHeader(const std::string& path) {
     ls >> key;
     long double v = 0;
     bool ok = true;
-    if (key == "SIZE") ok = numbers(ls, &sizes);
+    std::string word;
+    if (key == "FIELDS") while (ls >> word) fields.push_back(word);
+    else if (key == "TYPE") while (ls >> word) types.push_back(word);
+    else if (key == "SIZE") ok = numbers(ls, &sizes);
     else if (key == "COUNT") ok = numbers(ls, &counts);
     else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
       ok = (ls >> v) && v >= 0 && v <= 1e12;
@@ -117,6 +121,17 @@ std::string checkPcdHeader(const std::string& path) {
     if (!ok) return "malformed PCD header: bad " + key + " (counts up to 1e6, sizes up to 1e12)";
   }
   if (data.empty()) return "malformed PCD header: no DATA line";
+  // PCL's reader trusts these to agree (a compressed file without fields crashes it).
+  if (fields.empty() || sizes.size() != fields.size() || types.size() != fields.size() ||
+      (!counts.empty() && counts.size() != fields.size()))
+    return "malformed PCD header: FIELDS, SIZE, TYPE and COUNT must list the same number of fields";
+  for (const char* axis : {"x", "y", "z"})
+    if (std::find(fields.begin(), fields.end(), axis) == fields.end()) return "the cloud has no x, y, z fields";
+  for (std::size_t k = 0; k < fields.size(); ++k)
+    if (types[k].size() != 1 || std::string("FIU").find(types[k][0]) == std::string::npos ||
+        (sizes[k] != 1 && sizes[k] != 2 && sizes[k] != 4 && sizes[k] != 8) || (!counts.empty() && counts[k] == 0))
+      return "malformed PCD header: field '" + fields[k] + "' has a bad TYPE, SIZE or COUNT";
+  if (!has_width) return "malformed PCD header: no WIDTH line";
   if (!has_points) points = width * height;
   if (has_width && points != width * height) return "malformed PCD header: POINTS differs from WIDTH x HEIGHT";
   std::uint64_t point_step = 0;

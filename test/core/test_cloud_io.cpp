@@ -192,6 +192,12 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 99999999999999\nDATA ascii\n1 2 3\n",
       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4294967296\nHEIGHT 4294967296\nDATA binary\n",
       "FIELDS x y z a b c\nSIZE 4 4 4 8 8 8\nTYPE F F F F F F\nCOUNT 1 1 1 65536 65536 65536\nPOINTS 1\nDATA binary\n",
+      // Found by fuzz_cloud_file: no FIELDS line (misspelt) before compressed data crashed PCL.
+      "F0IELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 3\nPOINTS 3\nDATA binary_compressed\n"
+      "\x32\0\0\0\x30\0\0\0",
+      "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
+      "FIELDS x y z\nSIZE 4 4 3\nTYPE F F F\nWIDTH 1\nDATA binary\n",
+      "FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
   };
   for (const auto& text : lying) {
     writeFile(path, text + std::string(64, '\0'));
@@ -201,7 +207,7 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
   }
   // An uncompressed size LZF cannot reach from its compressed size (12 MB from 20 bytes).
   {
-    const std::string h3 = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1000000\n";
+    const std::string h3 = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1000000\nPOINTS 1000000\n";
     const std::uint32_t ratio[2] = {20u, 12000000u};
     writeFile(path, h3 + "DATA binary_compressed\n" + std::string(reinterpret_cast<const char*>(ratio), 8) +
                         std::string(20, '\0'));
