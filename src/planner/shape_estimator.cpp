@@ -114,6 +114,14 @@ void ShapeEstimatorHost::onView(const ViewData& view) {
     });
 }
 
+void ShapeEstimatorHost::insertView(const ViewData& view) {
+  for (std::size_t i = 0, n = size(); i < n; ++i) guarded(i, [&](ShapeEstimator& e) { e.insertView(view); });
+}
+
+void ShapeEstimatorHost::update() {
+  for (std::size_t i = 0, n = size(); i < n; ++i) guarded(i, [&](ShapeEstimator& e) { e.update(); });
+}
+
 PointList ShapeEstimatorHost::extraTargets() const {
   PointList all;
   for (std::size_t i = 0, n = size(); i < n; ++i) {

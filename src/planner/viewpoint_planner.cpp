@@ -128,7 +128,16 @@ std::string PlannerParams::problem() const {
   if (!finite_pos(octree_max_range)) return "octree_max_range must be > 0";
   if (!(std::isfinite(clearance) && clearance >= 0.0)) return "clearance must be >= 0";
   if (render_threads < 1) return "render_threads must be >= 1";
+  if (!(std::isfinite(estimator_period) && estimator_period >= 0.0)) return "estimator_period must be >= 0";
   return {};
+}
+
+PlannerParams paperProfile(PlannerParams p) {
+  p.paper_depth_noise = true;
+  p.explore_plants = false;
+  p.estimator_period = 3.0;  // the paper's surface cloud came every 3 s
+  p.charge_compute_time = true;
+  return p;
 }
 
 EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
@@ -157,7 +166,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   RoiOcTree tree(p.octree_resolution);
   Eigen::Vector3d pos = scene.camera_start_position, look = scene.camera_start_look_at;
-  double t = 0.0;
+  double t = 0.0, last_update = -1e300;
   int views_without_gain = 0;
   Eigen::Vector3d plants_center = Eigen::Vector3d::Zero();
   for (const auto& pl : scene.plants) plants_center += pl.position / std::max<std::size_t>(1, scene.plants.size());
@@ -173,6 +182,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       const PinholeCamera cam = PinholeCamera::lookingAt(pos, look);
       sim::DepthNoise noise;
       noise.enabled = p.depth_noise;
+      if (p.paper_depth_noise) noise.model = sim::DepthNoise::Model::kPaper;
       noise.seed = p.seed * 100003u + static_cast<unsigned>(view);
       const sim::RgbdFrame frame = renderer.render(cam, noise, p.render_threads);
       const std::vector<std::uint8_t> mask = sim::redMask(frame.rgb, frame.width, frame.height);
@@ -180,6 +190,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel) : sim::cloudsFromFrame(frame, mask);
       seen_points += clouds.full.size();
       seen_fruit += clouds.fruit.size();
+      const auto compute0 = std::chrono::steady_clock::now();  // the robot's own work starts here
 
       // The octree gets a pixel subsample (its 1 cm cells need no more); the estimators get all.
       PointList octree_points;
@@ -199,7 +210,15 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
       pose.linear() = cam.rotation;
       pose.translation() = cam.position;
-      host.onView(ViewData{clouds.fruit, clouds.full, pose, t});
+      if (p.estimator_period <= 0.0) {
+        host.onView(ViewData{clouds.fruit, clouds.full, pose, t});
+      } else {
+        host.insertView(ViewData{clouds.fruit, clouds.full, pose, t});
+        if (t - last_update >= p.estimator_period) {
+          host.update();
+          last_update = t;
+        }
+      }
 
       ViewRecord rec;
       rec.view = view;
@@ -245,22 +264,35 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       }
       double best_gain = 0.0;
       for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
-      if (best_gain <= 0.0) {  // exploration: anywhere in the workspace, looking at the plants
+      if (best_gain <= 0.0) {  // exploration: anywhere in the workspace
         rec.exploration = true;
         cands.clear();
+        // Without ground truth, look at what the map has seen occupied, or anywhere.
+        PointList seen;
+        if (!p.explore_plants)
+          for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+            if (tree.isNodeOccupied(*it)) seen.emplace_back(it.getX(), it.getY(), it.getZ());
         for (int i = 0; i < p.candidates; ++i) {
           const Eigen::Vector3d c = scene.workspace.box_min +
                                     (scene.workspace.box_max - scene.workspace.box_min).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
-          const Eigen::Vector3d target =
-              scene.plants.empty() ? plants_center
-                                   : scene.plants[static_cast<std::size_t>(unit(rng) * scene.plants.size()) % scene.plants.size()].position +
-                                         Eigen::Vector3d(0, 0, 0.2 + 0.5 * unit(rng));
+          Eigen::Vector3d target;
+          if (p.explore_plants)
+            target = scene.plants.empty() ? plants_center
+                                          : scene.plants[static_cast<std::size_t>(unit(rng) * scene.plants.size()) % scene.plants.size()].position +
+                                                Eigen::Vector3d(0, 0, 0.2 + 0.5 * unit(rng));
+          else if (!seen.empty())
+            target = seen[static_cast<std::size_t>(unit(rng) * seen.size()) % seen.size()];
+          else
+            target = c + Eigen::Vector3d(g(rng), g(rng), 0.3 * g(rng)).normalized();
           tryCandidate(c, target, nullptr);
         }
         best_gain = 0.0;
         for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
       }
-      rec.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
+      const auto done = std::chrono::steady_clock::now();
+      rec.wall_ms = std::chrono::duration<double, std::milli>(done - wall0).count();
+      rec.compute_ms = std::chrono::duration<double, std::milli>(done - compute0).count();
+      if (p.charge_compute_time) t += rec.compute_ms / 1000.0;
       result.views.push_back(rec);
       if (on_view && !on_view(rec, tree, cam, clouds)) {
         if (result.message.empty()) result.message = "stopped by the caller";

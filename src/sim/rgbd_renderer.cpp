@@ -20,6 +20,59 @@ struct RgbdRenderer::Impl {
   std::vector<std::array<std::uint8_t, 3>> colors;
 };
 
+namespace {
+
+// The paper's structured depth noise on a noise-free depth image (NaN: no depth). The sinusoids'
+// amplitudes are the paper's; their periods (in pixels) and per-frame phases are this
+// simulator's choice, since the paper does not give them. The blur averages only valid
+// neighbours: a pixel keeps its validity, and next to a depth edge takes a mixed depth.
+void applyPaperDepthNoise(RgbdFrame* frame, const DepthNoise& noise) {
+  const int w = frame->width, h = frame->height;
+  std::mt19937 rng(noise.seed * 2654435761u + 17u);
+  std::uniform_real_distribution<double> phase(0.0, 2.0 * M_PI);
+  const double p[5] = {phase(rng), phase(rng), phase(rng), phase(rng), phase(rng)};
+  std::vector<float>& depth = frame->depth;
+  for (int v = 0; v < h; ++v)
+    for (int u = 0; u < w; ++u) {
+      float& z = depth[static_cast<std::size_t>(v) * w + u];
+      if (std::isnan(z)) continue;
+      const double add = 0.002 * std::sin(2.0 * M_PI * u / 97.0 + p[0]) + 0.0015 * std::sin(2.0 * M_PI * v / 61.0 + p[1]) +
+                         0.001 * std::sin(2.0 * M_PI * (u + v) / 23.0 + p[2]);
+      const double mul = 1.0 + 0.002 * std::sin(2.0 * M_PI * u / 41.0 + p[3]) + 0.007 * std::sin(2.0 * M_PI * v / 149.0 + p[4]);
+      z = static_cast<float>(z * mul + add);
+    }
+  std::vector<float> blurred(depth.size(), std::numeric_limits<float>::quiet_NaN());
+  static const double kKernel[3] = {0.25, 0.5, 0.25};
+  for (int v = 0; v < h; ++v)
+    for (int u = 0; u < w; ++u) {
+      const std::size_t px = static_cast<std::size_t>(v) * w + u;
+      if (std::isnan(depth[px])) continue;
+      double sum = 0.0, weight = 0.0;
+      for (int dv = -1; dv <= 1; ++dv)
+        for (int du = -1; du <= 1; ++du) {
+          const int uu = u + du, vv = v + dv;
+          if (uu < 0 || vv < 0 || uu >= w || vv >= h) continue;
+          const float z = depth[static_cast<std::size_t>(vv) * w + uu];
+          if (std::isnan(z)) continue;
+          const double k = kKernel[du + 1] * kKernel[dv + 1];
+          sum += k * z;
+          weight += k;
+        }
+      blurred[px] = static_cast<float>(sum / weight);
+    }
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const double min_z = frame->camera.min_range, max_z = frame->camera.max_range;
+  for (std::size_t px = 0; px < blurred.size(); ++px) {
+    float& z = blurred[px];
+    if (std::isnan(z)) continue;
+    z = static_cast<float>(z + (noise.paper_sigma_base + noise.paper_sigma_rel * z) * gauss(rng));
+    if (z < min_z || z > max_z) z = std::numeric_limits<float>::quiet_NaN();
+  }
+  depth.swap(blurred);
+}
+
+}  // namespace
+
 RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit) : impl_(new Impl) {
   // Embree aborts the process on extreme coordinates: refuse them here with a message.
   for (const auto& v : scene.vertices)
@@ -99,7 +152,7 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
       out[k] = static_cast<std::uint8_t>(std::min(255.0, impl_->colors[mat][k] * shade + 0.5));
     if (t < cam.min_range || t > cam.max_range) return;
     double z = t * d.dot(axis);
-    if (noise.enabled) {
+    if (noise.enabled && noise.model == DepthNoise::Model::kIndependent) {
       if (cos_inc < cos_max) return;
       z += (noise.base + noise.quad * (z - noise.ref) * (z - noise.ref)) * gauss(rng);
     }
@@ -151,6 +204,7 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
     }
   };
   runParts(static_cast<std::size_t>(std::max(1, threads)), [&](std::size_t i) { work(static_cast<int>(i)); });
+  if (noise.enabled && noise.model == DepthNoise::Model::kPaper) applyPaperDepthNoise(&frame, noise);
   return frame;
 }
 

@@ -1,7 +1,8 @@
 // run_trials: episodes of the viewpoint planner on a scene, Old (ROI octree boxes) and SE
 // (superellipsoids) evaluated side by side after every view, as in the paper's tables.
 //   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
-//              [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR [--json] [--jobs J]
+//              [--profile ideal|paper] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR
+//              [--json] [--jobs J]
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
@@ -100,6 +101,7 @@ int main(int argc, char** argv) {
   std::string spec, out;
   int trials = 1, jobs = 0;
   bool json = false;
+  std::string profile = "ideal";
   PlannerParams base;
   for (int i = 1; i < argc; ++i) {
     auto need = [&](const char* flag) { return !std::strcmp(argv[i], flag) && i + 1 < argc; };
@@ -110,18 +112,27 @@ int main(int argc, char** argv) {
     else if (need("--out")) out = argv[++i];
     else if (need("--jobs")) jobs = std::atoi(argv[++i]);
     else if (need("--input-voxel")) base.input_voxel = std::atof(argv[++i]);
+    else if (need("--profile")) profile = argv[++i];
     else if (!std::strcmp(argv[i], "--no-shape-targets")) base.shape_targets = false;
     else if (!std::strcmp(argv[i], "--no-noise")) base.depth_noise = false;
     else if (!std::strcmp(argv[i], "--json")) json = true;
     else {
       std::cerr << "usage: run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K] "
-                   "[--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR [--json] [--jobs J]\n"
+                   "[--profile ideal|paper] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR [--json] [--jobs J]\n"
+                   "  --profile paper  the paper's depth noise and blur, estimator every 3 s, compute time on the clock,\n"
+                   "                   no ground truth in planning (arm and textures: not yet)\n"
                    "  --input-voxel M  feed the estimators pointcloud_roi's output: the cloud downsampled to M (0.01)\n";
       return 2;
     }
   }
   if (spec.empty() || out.empty()) {
     std::cerr << "run_trials: --scene and --out are required\n";
+    return 2;
+  }
+  if (profile == "paper") {
+    base = paperProfile(base);
+  } else if (profile != "ideal") {
+    std::cerr << "run_trials: --profile must be ideal or paper\n";
     return 2;
   }
   if (trials < 1 || trials > 1000 || !(base.duration > 0) || !std::isfinite(base.duration)) {
@@ -173,13 +184,13 @@ int main(int argc, char** argv) {
   // Per-trial CSV: one row per view.
   for (int k = 0; k < trials; ++k) {
     std::ofstream csv(out + "/trial_" + std::to_string(k) + ".csv");
-    csv << "view,time_s,x,y,z,exploration,contour_targets,shape_targets,wall_ms";
+    csv << "view,time_s,x,y,z,exploration,contour_targets,shape_targets,wall_ms,compute_ms";
     for (const char* est : {"old", "se", "old_box"})
       for (const char* s : kSubsets) csv << ',' << est << '_' << s << "_fruits," << est << '_' << s << "_center_cm," << est << '_' << s << "_accuracy";
     csv << '\n';
     for (const auto& v : results[k].views) {
       csv << v.view << ',' << v.time << ',' << v.position.x() << ',' << v.position.y() << ',' << v.position.z() << ','
-          << v.exploration << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms;
+          << v.exploration << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
       for (const Evaluation* e : {&v.old_true, &v.se_true, &v.old_box})
         for (int s = 0; s < 3; ++s)
           csv << ',' << subset(*e, s).fruits << ',' << subset(*e, s).center_error_cm << ',' << subset(*e, s).accuracy;
@@ -200,7 +211,7 @@ int main(int argc, char** argv) {
   for (const auto& r : results) views_per.push_back(r.views.size());
   std::ofstream js(out + "/results.json");
   std::ostringstream body;
-  body << "{\"scene\": " << jsonString(scene.name) << ", \"trials\": " << trials << ", \"duration_s\": "
+  body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"trials\": " << trials << ", \"duration_s\": "
        << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
        << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << fruits.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
        << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean);

@@ -158,6 +158,59 @@ TEST(RgbdRenderer, NoiseGrowsWithDistanceAsModelled) {
   EXPECT_EQ(renderer.render(cam, again, 1).depth, noisy.depth);
 }
 
+TEST(RgbdRenderer, PaperNoiseIsStructuredAndBlursEdgesIntoMixedDepths) {
+  const Scene scene = toyScene();
+  const RgbdRenderer renderer(scene, {});
+  // The ground from 1.2 m: Gaussian 1 mm + 0.3 % (4.6 mm) on top of sinusoids of up to 4.5 mm
+  // and 0.9 % (11 mm): far above the independent model's 2.4 mm.
+  const PinholeCamera ground = PinholeCamera::lookingAt(Eigen::Vector3d(1, -1, 1.2), Eigen::Vector3d(1, -1, 0), 320, 240);
+  DepthNoise paper;
+  paper.model = DepthNoise::Model::kPaper;
+  DepthNoise none;
+  none.enabled = false;
+  const RgbdFrame noisy = renderer.render(ground, paper), exact = renderer.render(ground, none);
+  double sum2 = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < exact.depth.size(); ++i)
+    if (std::isfinite(noisy.depth[i]) && std::isfinite(exact.depth[i])) {
+      sum2 += std::pow(noisy.depth[i] - exact.depth[i], 2);
+      ++n;
+    }
+  ASSERT_GT(n, 70000);
+  const double rms = std::sqrt(sum2 / n);
+  EXPECT_GT(rms, 0.005);
+  EXPECT_LT(rms, 0.014);
+  EXPECT_EQ(renderer.render(ground, paper, 1).depth, noisy.depth);  // reproducible, any thread count
+
+  // The box top (0.9 m) over the ground (1.2 m), without the Gaussian part: next to the edge the
+  // blur mixes the two depths; away from it a pixel keeps its surface (within the sinusoids).
+  paper.paper_sigma_base = paper.paper_sigma_rel = 0.0;
+  const PinholeCamera above = PinholeCamera::lookingAt(Eigen::Vector3d(0, 0.5, 1.2), Eigen::Vector3d(0, 0.5, 0), 160, 120);
+  const RgbdFrame blurred = renderer.render(above, paper), sharp = renderer.render(above, none);
+  int mixed = 0, edge = 0;
+  for (int v = 1; v + 1 < sharp.height; ++v)
+    for (int u = 1; u + 1 < sharp.width; ++u) {
+      const std::size_t px = static_cast<std::size_t>(v) * sharp.width + u;
+      float lo = sharp.depth[px], hi = sharp.depth[px];
+      for (int dv = -1; dv <= 1; ++dv)
+        for (int du = -1; du <= 1; ++du) {
+          const float z = sharp.depth[static_cast<std::size_t>(v + dv) * sharp.width + u + du];
+          lo = std::min(lo, z);
+          hi = std::max(hi, z);
+        }
+      if (hi - lo < 0.2f) {
+        EXPECT_NEAR(blurred.depth[px], sharp.depth[px], 0.0025 + 0.009 * sharp.depth[px]);
+        continue;
+      }
+      ++edge;
+      EXPECT_GT(blurred.depth[px], lo - 0.016f);
+      EXPECT_LT(blurred.depth[px], hi + 0.016f);
+      mixed += std::abs(blurred.depth[px] - sharp.depth[px]) > 0.03f;  // moved toward the other surface
+    }
+  EXPECT_GT(edge, 50);
+  EXPECT_GT(mixed, edge / 2);
+}
+
 TEST(FruitTruth, ClosedOpenAndDoubleSidedBoxesHaveExactVolumes) {
   for (int variant = 0; variant < 3; ++variant) {
     Scene s = toyScene();

@@ -51,6 +51,9 @@ class ShapeEstimatorHost {
   void add(std::unique_ptr<ShapeEstimator> estimator);
   // Insert + update of every enabled estimator.
   void onView(const ViewData& view);
+  // The two halves, for a host that updates on a timer instead of after every view.
+  void insertView(const ViewData& view);
+  void update();
   PointList extraTargets() const;
   // Fruits of estimator i; empty (and the estimator disabled) if it throws.
   std::vector<FruitEstimate> fruits(std::size_t i) const;

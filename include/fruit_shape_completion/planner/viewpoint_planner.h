@@ -39,9 +39,18 @@ struct PlannerParams {
   // cloud: the coloured cloud voxel-downsampled to this leaf size [m] (upstream: 0.01), and the
   // red test applied to the voxels' mean colours.
   double input_voxel = 0.0;
+  // The paper-like profile's parts (paperProfile()); the defaults are the ideal simulation.
+  bool paper_depth_noise = false;   // the paper's structured noise and blur (sim::DepthNoise::kPaper)
+  bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
+  double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
+  bool charge_compute_time = false; // the planner's and estimators' wall time adds to the clock
   // Empty if usable, else what is wrong (runEpisode refuses to start with it).
   std::string problem() const;
 };
+
+// The parts of the paper's set-up simulated so far: its depth noise, an estimator refreshed
+// every 3 s, compute time on the episode clock, and no ground truth in planning.
+PlannerParams paperProfile(PlannerParams base = PlannerParams());
 
 struct ViewRecord {
   int view = 0;
@@ -53,6 +62,7 @@ struct ViewRecord {
   int contour_targets = 0, shape_targets = 0;
   bool exploration = false;
   double wall_ms = 0.0;
+  double compute_ms = 0.0;  // the planner's and estimators' part of wall_ms (rendering excluded)
 };
 
 struct EpisodeResult {

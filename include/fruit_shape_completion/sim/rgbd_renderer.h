@@ -15,10 +15,19 @@ namespace sim {
 
 struct DepthNoise {
   bool enabled = true;
-  // Axial noise sigma(z) = base + quad * (z - ref)^2 [m] (Nguyen et al. 2012, Kinect).
+  enum class Model {
+    // Independent per pixel: sigma(z) = base + quad * (z - ref)^2 (Nguyen et al. 2012, Kinect),
+    // no depth beyond max_incidence_deg.
+    kIndependent,
+    // The paper's simulation, applied to the noise-free depth image: sums of sinusoids over the
+    // image (additive 2, 1.5, 1 mm; multiplicative 0.2 %, 0.7 %), a 3x3 Gaussian blur (edges
+    // blur into mixed depths), then Gaussian noise of paper_sigma_base + paper_sigma_rel * z.
+    kPaper,
+  };
+  Model model = Model::kIndependent;
   double base = 0.0012, quad = 0.0019, ref = 0.4;
-  // Pixels seen at more than this angle from the surface normal return no depth.
   double max_incidence_deg = 80.0;
+  double paper_sigma_base = 0.001, paper_sigma_rel = 0.003;
   std::uint32_t seed = 1;
 };
 
