@@ -100,6 +100,10 @@ std::string checkPcdHeader(const std::string& path) {
     return true;
   };
   while (data.empty() && std::getline(in, line)) {
+    // The header is text; PCL's parser misreads control bytes in it (a NUL inside a key made
+    // its reader crash on an otherwise sound file).
+    for (unsigned char c : line)
+      if ((c < 0x20 && c != '\t' && c != '\r') || c >= 0x7f) return "malformed PCD header: a byte that is not text";
     std::istringstream ls(line);
     std::string key;
     ls >> key;

@@ -196,6 +196,8 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
       "F0IELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 3\nPOINTS 3\nDATA binary_compressed\n"
       "\x32\0\0\0\x30\0\0\0",
       "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
+      // Also found by fuzz_cloud_file: control bytes inside a header key.
+      std::string("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOI\0\0\0\xf1NTS 1\nDATA binary\n", 68),
       "FIELDS x y z\nSIZE 4 4 3\nTYPE F F F\nWIDTH 1\nDATA binary\n",
       "FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
   };
