@@ -264,47 +264,29 @@ TEST(TsdfMap, SaveAndLoadRestoreTheMapAndRefuseBrokenFiles) {
   std::ofstream(path) << "hello";
   EXPECT_FALSE(loaded.load(path, &err));
   EXPECT_NE(err.find("magic"), std::string::npos) << err;
-  // A header with an absurd voxel size, and a block far beyond any real map: refused.
+  // Lying headers and block origins far beyond any real map: refused.
   {
     TsdfMap far;
     TsdfVoxel v;
     v.distance = 0.0f;
     v.weight = 1.0f;
     ASSERT_TRUE(far.setVoxel(VoxelIndex(1, 2, 3), v));
-    ASSERT_TRUE(far.save(path, &err)) << err;
-    std::fstream io(path, std::ios::in | std::ios::out | std::ios::binary);
-    // header: magic 8, version 4, voxel size 8, vps 4, count 8; then the block origin (3 x int64)
-    const std::int64_t huge = std::int64_t(1) << 50;
-    io.seekp(8 + 4 + 8 + 4 + 8);
-    io.write(reinterpret_cast<const char*>(&huge), 8);
-    io.close();
-    EXPECT_FALSE(loaded.load(path, &err));
-    EXPECT_NE(err.find("out of range"), std::string::npos) << err;
-    ASSERT_TRUE(far.save(path, &err)) << err;
-    std::fstream io2(path, std::ios::in | std::ios::out | std::ios::binary);
-    const double tiny = 1e-300;
-    io2.seekp(8 + 4);
-    io2.write(reinterpret_cast<const char*>(&tiny), 8);
-    io2.close();
-    EXPECT_FALSE(loaded.load(path, &err));
-    EXPECT_NE(err.find("voxel_size"), std::string::npos) << err;
-    // A header asking for 512-voxel blocks (1 GiB each) and an INT64_MIN block origin.
-    ASSERT_TRUE(far.save(path, &err)) << err;
-    std::fstream io3(path, std::ios::in | std::ios::out | std::ios::binary);
-    const std::uint32_t side = 512;
-    io3.seekp(8 + 4 + 8);
-    io3.write(reinterpret_cast<const char*>(&side), 4);
-    io3.close();
-    EXPECT_FALSE(loaded.load(path, &err));
-    EXPECT_NE(err.find("exceeds 128"), std::string::npos) << err;
-    ASSERT_TRUE(far.save(path, &err)) << err;
-    std::fstream io4(path, std::ios::in | std::ios::out | std::ios::binary);
-    const std::int64_t lowest = std::numeric_limits<std::int64_t>::min();
-    io4.seekp(8 + 4 + 8 + 4 + 8);
-    io4.write(reinterpret_cast<const char*>(&lowest), 8);
-    io4.close();
-    EXPECT_FALSE(loaded.load(path, &err));
-    EXPECT_NE(err.find("out of range"), std::string::npos) << err;
+    // Saves `far`, overwrites the bytes at `offset` with `value`, and expects load to refuse it
+    // with a message containing `expected`. Header: magic 8, version 4, voxel size 8, vps 4,
+    // count 8; then the first block's origin (3 x int64).
+    auto refusedWhenPatched = [&](std::streamoff offset, const auto& value, const std::string& expected) {
+      ASSERT_TRUE(far.save(path, &err)) << err;
+      std::fstream io(path, std::ios::in | std::ios::out | std::ios::binary);
+      io.seekp(offset);
+      io.write(reinterpret_cast<const char*>(&value), sizeof(value));
+      io.close();
+      EXPECT_FALSE(loaded.load(path, &err));
+      EXPECT_NE(err.find(expected), std::string::npos) << err;
+    };
+    refusedWhenPatched(8 + 4 + 8 + 4 + 8, std::int64_t(1) << 50, "out of range");
+    refusedWhenPatched(8 + 4, 1e-300, "voxel_size");
+    refusedWhenPatched(8 + 4 + 8, std::uint32_t(512), "exceeds 128");  // 1 GiB blocks
+    refusedWhenPatched(8 + 4 + 8 + 4 + 8, std::numeric_limits<std::int64_t>::min(), "out of range");
   }
   EXPECT_EQ(loaded.observedVoxelCount(), before);
   std::remove(path.c_str());
