@@ -88,6 +88,7 @@ std::string checkPcdHeader(const std::string& path) {
   std::string line;
   std::vector<std::uint64_t> sizes, counts;
   std::vector<std::string> fields, types;
+  std::string version;
   std::uint64_t width = 1, height = 1, points = 0;
   bool has_points = false, has_width = false;
   std::string data;
@@ -121,10 +122,17 @@ std::string checkPcdHeader(const std::string& path) {
       has_width = has_width || key == "WIDTH";
     } else if (key == "DATA") {
       ls >> data;
+    } else if (key == "VERSION") {
+      ls >> version;
+    } else if (!key.empty() && key[0] != '#' && key != "VIEWPOINT") {
+      // PCL ignores what it does not know, and then reads such files wrongly (a misspelt
+      // VERSION line made it crash): a version 0.7 header has these keys only.
+      return "malformed PCD header: unknown line '" + line.substr(0, 40) + "'";
     }
     if (!ok) return "malformed PCD header: bad " + key + " (counts up to 1e6, sizes up to 1e12)";
   }
   if (data.empty()) return "malformed PCD header: no DATA line";
+  if (version != "0.7" && version != ".7") return "malformed PCD header: VERSION 0.7 expected";
   // PCL's reader trusts these to agree (a compressed file without fields crashes it).
   if (fields.empty() || sizes.size() != fields.size() || types.size() != fields.size() ||
       (!counts.empty() && counts.size() != fields.size()))

@@ -196,7 +196,9 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
       "F0IELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 3\nPOINTS 3\nDATA binary_compressed\n"
       "\x32\0\0\0\x30\0\0\0",
       "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
-      // Also found by fuzz_cloud_file: control bytes inside a header key.
+      // Also found by fuzz_cloud_file: a misspelt VERSION line; control bytes inside a key.
+      "# .PCD v0.7V\nERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
+      "POINTS 1\nDATA ascii\n0.1 0.2 0.3\n",
       std::string("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOI\0\0\0\xf1NTS 1\nDATA binary\n", 68),
       "FIELDS x y z\nSIZE 4 4 3\nTYPE F F F\nWIDTH 1\nDATA binary\n",
       "FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
@@ -209,7 +211,7 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
   }
   // An uncompressed size LZF cannot reach from its compressed size (12 MB from 20 bytes).
   {
-    const std::string h3 = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1000000\nPOINTS 1000000\n";
+    const std::string h3 = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1000000\nPOINTS 1000000\n";
     const std::uint32_t ratio[2] = {20u, 12000000u};
     writeFile(path, h3 + "DATA binary_compressed\n" + std::string(reinterpret_cast<const char*>(ratio), 8) +
                         std::string(20, '\0'));
