@@ -178,32 +178,63 @@ CloudFile readPcd(const std::string& path) {
   return pointsOf(blob, path);
 }
 
-// The vertex count and storage of a PLY header, for the check before PCL reads it.
-bool plyVertexCount(const std::string& path, std::uint64_t* count, bool* binary) {
+// The vertex count and storage of a PLY header, for the check before PCL reads it; "" if the
+// header is usable, else what is wrong with it.
+std::string checkPlyHeader(const std::string& path, std::uint64_t* count, bool* binary) {
   std::ifstream in(path, std::ios::binary);
-  std::string line;
+  std::string line, element;
+  std::vector<std::string> vertex_properties;
   *count = 0;
   *binary = false;
   while (std::getline(in, line) && line.rfind("end_header", 0) != 0) {
     std::istringstream ls(line);
-    std::string word, element;
+    std::string word;
     ls >> word;
     if (word == "format") {
+      ls >> word;
+      *binary = word != "ascii";
+    } else if (word == "element") {
       ls >> element;
-      *binary = element != "ascii";
-    } else if (word == "element" && (ls >> element) && element == "vertex") {
-      long double n = -1;
-      if (!(ls >> n) || n < 0 || n > 1e15) return false;
-      *count = static_cast<std::uint64_t>(n);
+      if (element == "vertex") {
+        long double n = -1;
+        if (!(ls >> n) || n < 0 || n > 1e15) return "malformed PLY header: bad vertex count";
+        *count = static_cast<std::uint64_t>(n);
+      }
+    } else if (word == "property" && element == "vertex") {
+      std::string type, name;
+      ls >> type;
+      if (type == "list") return "malformed PLY header: a list property of vertices";
+      ls >> name;
+      vertex_properties.push_back(name);
     }
   }
-  return static_cast<bool>(in);
+  if (!in) return "malformed PLY header";
+  auto has = [&](const char* name) {
+    return std::find(vertex_properties.begin(), vertex_properties.end(), name) != vertex_properties.end();
+  };
+  if (!has("x") || !has("y") || !has("z")) return "the cloud has no x, y, z fields";
+  // PCL's reader aborts (an assertion) on colour properties other than red, green, blue in a
+  // row, optionally followed by alpha.
+  for (const char* prefix : {"", "diffuse_"}) {
+    const std::string r = std::string(prefix) + "red", g = std::string(prefix) + "green", b = std::string(prefix) + "blue";
+    const auto at = std::find(vertex_properties.begin(), vertex_properties.end(), r);
+    const bool any = has(r.c_str()) || has(g.c_str()) || has(b.c_str());
+    if (any && (at == vertex_properties.end() || vertex_properties.end() - at < 3 || at[1] != g || at[2] != b))
+      return "malformed PLY header: colour properties must be " + r + ", " + g + ", " + b + " in a row";
+  }
+  if (has("alpha")) {
+    const auto at = std::find(vertex_properties.begin(), vertex_properties.end(), "alpha");
+    if (at - vertex_properties.begin() < 3 || at[-1] != "blue")
+      return "malformed PLY header: alpha must follow red, green, blue";
+  }
+  return "";
 }
 
 CloudFile readPly(const std::string& path) {
   std::uint64_t count = 0;
   bool binary = false;
-  if (!plyVertexCount(path, &count, &binary)) return fail(path, "malformed PLY header");
+  const std::string problem = checkPlyHeader(path, &count, &binary);
+  if (!problem.empty()) return fail(path, problem);
   // A binary vertex takes at least 3 bytes, an ascii one at least 6 ("0 0 0\n").
   if (count * (binary ? 3 : 6) > fileSize(path))
     return fail(path, "truncated: the header's " + std::to_string(count) + " vertices cannot fit in the file");

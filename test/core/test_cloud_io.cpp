@@ -141,6 +141,12 @@ TEST(CloudIo, PcdAsciiAndMalformedFiles) {
   const CloudFile nxyz = readPointCloud(bad_ply);
   EXPECT_FALSE(nxyz.ok());
   EXPECT_NE(nxyz.error.find("x, y, z"), std::string::npos) << nxyz.error;
+  // Found by fuzz_cloud_file: a lone colour property made PCL's reader abort on an assertion.
+  writeFile(bad_ply, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+                     "property uchar blue\nend_header\n0.1 0.2 0.3 20\n");
+  const CloudFile lone_blue = readPointCloud(bad_ply);
+  EXPECT_FALSE(lone_blue.ok());
+  EXPECT_NE(lone_blue.error.find("colour"), std::string::npos) << lone_blue.error;
   std::remove(bad_ply.c_str());
 }
 
