@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <new>
@@ -152,6 +153,30 @@ std::string checkPcdHeader(const std::string& path) {
   const std::uint64_t data_at = static_cast<std::uint64_t>(in.tellg()), size = fileSize(path);
   if (data == "ascii") {
     if (points > size) return "more points in the header than the file can hold";
+    // PCL's ascii reader trusts every line to hold the header's values (a line of control
+    // bytes made it crash): each is checked here, one point per line.
+    std::uint64_t values = 0;
+    for (std::size_t k = 0; k < fields.size(); ++k) values += counts.empty() ? 1 : counts[k];
+    std::uint64_t lines = 0;
+    while (std::getline(in, line)) {
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      std::istringstream ls(line);
+      std::string token;
+      std::uint64_t n = 0;
+      while (ls >> token) {
+        char* end = nullptr;
+        std::strtod(token.c_str(), &end);
+        if (end == token.c_str() || *end != '\0')
+          return "point line " + std::to_string(lines + 1) + " holds something that is not a number";
+        ++n;
+      }
+      if (n != values)
+        return "point line " + std::to_string(lines + 1) + " has " + std::to_string(n) + " values, the header " +
+               std::to_string(values);
+      if (++lines > points) break;
+    }
+    if (lines != points)
+      return "the header promises " + std::to_string(points) + " points, the file holds " + std::to_string(lines);
   } else if (data == "binary") {
     if (data_at + points * point_step > size)
       return "the file is shorter than its header's " + std::to_string(points) + " points need";

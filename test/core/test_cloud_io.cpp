@@ -202,7 +202,10 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
       "F0IELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 3\nPOINTS 3\nDATA binary_compressed\n"
       "\x32\0\0\0\x30\0\0\0",
       "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
-      // Also found by fuzz_cloud_file: a misspelt VERSION line; control bytes inside a key.
+      // Also found by fuzz_cloud_file: header lines and control bytes among ascii points.
+      "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 2\nDATA ascii\nTYPE F F F\n"
+      "COUNT \x18\x18\x18 1 2 0.3\n",
+      // A misspelt VERSION line; control bytes inside a key.
       "# .PCD v0.7V\nERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
       "POINTS 1\nDATA ascii\n0.1 0.2 0.3\n",
       std::string("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOI\0\0\0\xf1NTS 1\nDATA binary\n", 68),

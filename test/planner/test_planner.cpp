@@ -28,13 +28,23 @@ struct FailLargeAllocations {
 };
 }  // namespace
 
+// Every unaligned form, so that whatever one of them allocates another frees with malloc's pair.
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
+  if (fail_large_allocations && n >= kFailFrom) return nullptr;
+  return std::malloc(n == 0 ? 1 : n);
+}
 void* operator new(std::size_t n) {
-  if (fail_large_allocations && n >= kFailFrom) throw std::bad_alloc();
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  if (void* p = operator new(n, std::nothrow)) return p;
   throw std::bad_alloc();
 }
+void* operator new[](std::size_t n) { return operator new(n); }
+void* operator new[](std::size_t n, const std::nothrow_t&) noexcept { return operator new(n, std::nothrow); }
 void operator delete(void* p) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
 
 namespace {
 
