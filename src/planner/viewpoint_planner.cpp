@@ -6,8 +6,10 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <unordered_set>
@@ -100,6 +102,10 @@ SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double res
   SceneTruth truth;
   truth.box_resolution = resolution;
   for (const auto& f : fruits) {
+    if (f.color != "red") {  // the paper scores red fruit; others may not match an estimate either
+      truth.not_scored.push_back(f.center);
+      continue;
+    }
     truth.enclosed.push_back({f.center, f.volume});
     truth.se.push_back({f.se.t, f.se_volume});
     // Centres of the voxels holding the extreme vertices: floor(x / res) + 0.5, per axis.
@@ -109,6 +115,23 @@ SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double res
     truth.box.push_back({0.5 * (lo + hi), volume});
   }
   return truth;
+}
+
+std::vector<FruitEstimate> SceneTruth::scoredEstimates(std::vector<FruitEstimate> estimates) const {
+  if (not_scored.empty()) return estimates;
+  auto nearest = [](const Eigen::Vector3d& c, const std::vector<Eigen::Vector3d>& points) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& p : points) best = std::min(best, (p - c).norm());
+    return best;
+  };
+  std::vector<Eigen::Vector3d> scored;
+  for (const auto& t : enclosed) scored.push_back(t.center);
+  estimates.erase(std::remove_if(estimates.begin(), estimates.end(),
+                                 [&](const FruitEstimate& e) {
+                                   return nearest(e.center(), not_scored) < nearest(e.center(), scored);
+                                 }),
+                  estimates.end());
+  return estimates;
 }
 
 std::string PlannerParams::problem() const {
@@ -167,6 +190,9 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   RoiOcTree tree(p.octree_resolution);
   Eigen::Vector3d pos = scene.camera_start_position, look = scene.camera_start_look_at;
   double t = 0.0, last_update = -1e300;
+  // What the mask should find: fruit materials whose colour is red (the paper scores red fruit).
+  std::vector<char> red_fruit_material;
+  for (const auto& m : scene.materials) red_fruit_material.push_back(m.fruit && sim::colorClass(m.rgb) == "red");
   int views_without_gain = 0;
   Eigen::Vector3d plants_center = Eigen::Vector3d::Zero();
   for (const auto& pl : scene.plants) plants_center += pl.position / std::max<std::size_t>(1, scene.plants.size());
@@ -186,6 +212,17 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       noise.seed = p.seed * 100003u + static_cast<unsigned>(view);
       const sim::RgbdFrame frame = renderer.render(cam, noise, p.render_threads);
       const std::vector<std::uint8_t> mask = sim::redMask(frame.rgb, frame.width, frame.height);
+      for (std::size_t px = 0; px < mask.size(); ++px) {
+        const int m = frame.material[px];
+        if (m < 0) continue;
+        if (red_fruit_material[static_cast<std::size_t>(m)]) {
+          ++result.mask_positives;
+          result.mask_false_negatives += !mask[px];
+        } else {
+          ++result.mask_negatives;
+          result.mask_false_positives += mask[px];
+        }
+      }
       const sim::FrameClouds clouds =
           p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel) : sim::cloudsFromFrame(frame, mask);
       seen_points += clouds.full.size();
@@ -226,7 +263,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       rec.position = pos;
       std::vector<FruitEstimate> old_fruits, se_fruits;
       for (const auto& c : tree.roiClusters(10)) old_fruits.push_back(FruitEstimate::ofBox(c.center(), c.volume()));
-      se_fruits = host.fruits(0);
+      old_fruits = truth.scoredEstimates(std::move(old_fruits));
+      se_fruits = truth.scoredEstimates(host.fruits(0));
       rec.old_true = evaluate(old_fruits, truth.enclosed);
       rec.se_true = evaluate(se_fruits, truth.enclosed);
       rec.old_se = evaluate(old_fruits, truth.se);

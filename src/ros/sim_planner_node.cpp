@@ -168,7 +168,7 @@ int main(int argc, char** argv) {
   params.seed = static_cast<unsigned>(seed);
   params.shape_targets = shape_targets;
   params.render_threads = 2;
-  ROS_INFO("planning on %s (%zu ground-truth fruits) for %.0f s", scene.name.c_str(), truth.enclosed.size(), duration);
+  ROS_INFO("planning on %s (%zu red ground-truth fruits scored) for %.0f s", scene.name.c_str(), truth.enclosed.size(), duration);
   const auto result = planner::runEpisode(scene, renderer, truth, host, params,
       [&](const planner::ViewRecord& v, const planner::RoiOcTree& tree, const PinholeCamera& cam, const sim::FrameClouds& clouds) {
         geometry_msgs::TransformStamped t;

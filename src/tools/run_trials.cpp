@@ -213,7 +213,7 @@ int main(int argc, char** argv) {
   std::ostringstream body;
   body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"trials\": " << trials << ", \"duration_s\": "
        << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
-       << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << fruits.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
+       << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << truth.enclosed.size() << ", \"unscored_fruits\": " << truth.not_scored.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
        << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean);
   for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0)}) {
     body << ", \"" << label << "\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_true))
@@ -226,7 +226,15 @@ int main(int argc, char** argv) {
   for (const auto& r : results)
     if (!r.message.empty() && messages.find(r.message) == std::string::npos) messages += (messages.empty() ? "" : "; ") + r.message;
   int dropped = 0;
-  for (const auto& r : results) dropped += r.dropped_views;
+  std::vector<double> fn_rate, fp_rate;  // per episode
+  for (const auto& r : results) {
+    dropped += r.dropped_views;
+    if (r.mask_positives > 0) fn_rate.push_back(double(r.mask_false_negatives) / double(r.mask_positives));
+    if (r.mask_negatives > 0) fp_rate.push_back(double(r.mask_false_positives) / double(r.mask_negatives));
+  }
+  const MeanStd fn = meanStd(fn_rate), fp = meanStd(fp_rate);
+  body << ", \"mask_false_negative_rate\": {\"mean\": " << jsonNumber(fn.mean) << ", \"std\": " << jsonNumber(fn.std)
+       << "}, \"mask_false_positive_rate\": {\"mean\": " << jsonNumber(fp.mean) << ", \"std\": " << jsonNumber(fp.std) << "}";
   body << ", \"dropped_views\": " << dropped << ", \"messages\": " << jsonString(messages) << "}\n";
   js << body.str();
   if (!js) {
@@ -236,10 +244,12 @@ int main(int argc, char** argv) {
   if (json) {
     std::cout << body.str();
   } else {
-    std::printf("%s: %zu ground-truth fruits, %d trials of %.0f s (simulated), shape targets %s, %.1f views and %.1f s wall per trial\n",
-                scene.name.c_str(), fruits.size(), trials, base.duration, base.shape_targets ? "on" : "off",
+    std::printf("%s: %zu red ground-truth fruits scored (%zu of other colours not), %d trials of %.0f s (simulated), shape targets %s, %.1f views and %.1f s wall per trial\n",
+                scene.name.c_str(), truth.enclosed.size(), truth.not_scored.size(), trials, base.duration, base.shape_targets ? "on" : "off",
                 meanStd(views_per).mean, meanStd(wall).mean);
     if (!messages.empty()) std::printf("note: %s\n", messages.c_str());
+    std::printf("fruit mask against the labels, per episode: %.2f +- %.2f %% of red-fruit pixels missed, "
+                "%.3f +- %.3f %% of other pixels taken for fruit\n", 100 * fn.mean, 100 * fn.std, 100 * fp.mean, 100 * fp.std);
     printTable("after the full duration, against the enclosed (true) volume:", collect(base.duration, &ViewRecord::old_true),
                collect(base.duration, &ViewRecord::se_true));
     printTable("against the paper-style ground-truth superellipsoid volume:", collect(base.duration, &ViewRecord::old_se),

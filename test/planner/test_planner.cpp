@@ -172,6 +172,7 @@ TEST(Evaluation, BoxTruthIsTheBoxOfTheFruitsVoxelCentres) {
   f.box_max = Eigen::Vector3d(0.0505, 0.0105, 0.0405);
   f.center = Eigen::Vector3d(0.02, 0.0, 0.02);
   f.volume = 30e-6;  // half the box, as a fruit in its box
+  f.color = "red";
   const SceneTruth t = makeSceneTruth({f}, 0.01);
   ASSERT_EQ(t.box.size(), 1u);
   // voxel centres 0.005..0.055, -0.015..0.015, 0.005..0.045
@@ -182,6 +183,31 @@ TEST(Evaluation, BoxTruthIsTheBoxOfTheFruitsVoxelCentres) {
   const std::vector<FruitEstimate> old = {FruitEstimate::ofBox(t.box[0].center, 0.05 * 0.03 * 0.04)};
   EXPECT_NEAR(evaluate(old, t.box).ma50.accuracy, 1.0, 1e-9);
   EXPECT_EQ(evaluate(old, t.enclosed).ma50.fruits, 0);
+}
+
+TEST(Evaluation, OnlyRedFruitsAreScoredAndOthersAreNoFalseMatch) {
+  std::vector<sim::FruitTruth> fruits(3);
+  fruits[0].center = Eigen::Vector3d(0, 0, 0.5);
+  fruits[1].center = Eigen::Vector3d(0.1, 0, 0.5);
+  fruits[2].center = Eigen::Vector3d(0.5, 0, 0.5);
+  for (auto& f : fruits) {
+    f.volume = f.se_volume = 1e-4;
+    f.box_min = f.center.array() - 0.02;
+    f.box_max = f.center.array() + 0.02;
+    f.color = "red";
+  }
+  fruits[1].color = "yellow";
+  const SceneTruth truth = makeSceneTruth(fruits, 0.01);
+  ASSERT_EQ(truth.enclosed.size(), 2u);
+  ASSERT_EQ(truth.not_scored.size(), 1u);
+  // An estimate of the yellow fruit would otherwise match the red one 10 cm away.
+  const std::vector<FruitEstimate> estimates = {FruitEstimate::ofBox(Eigen::Vector3d(0.1, 0, 0.5), 1e-4),
+                                                FruitEstimate::ofBox(Eigen::Vector3d(0.5, 0, 0.5), 1e-4)};
+  EXPECT_EQ(evaluate(estimates, truth.enclosed).all.fruits, 2);
+  const auto scored = truth.scoredEstimates(estimates);
+  ASSERT_EQ(scored.size(), 1u);
+  EXPECT_LT((scored[0].center() - fruits[2].center).norm(), 1e-9);
+  EXPECT_EQ(evaluate(scored, truth.enclosed).all.fruits, 1);
 }
 
 TEST(Evaluation, GreedyOneToOneMatchingAndSubsets) {

@@ -11,6 +11,7 @@
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -69,6 +70,10 @@ struct EpisodeResult {
   std::vector<ViewRecord> views;
   std::string message;  // why it ended early or ran empty; empty if it ran normally
   int truth_fruits = 0;
+  // The fruit mask against the renderer's labels, over all pixels with a surface: red-fruit
+  // pixels it missed, and other pixels it took for fruit.
+  std::uint64_t mask_positives = 0, mask_false_negatives = 0;
+  std::uint64_t mask_negatives = 0, mask_false_positives = 0;
   int dropped_views = 0;       // views that threw and were skipped
   std::string dropped_reason;  // the first one's exception
 };
@@ -81,8 +86,12 @@ struct SceneTruth {
   // a fully seen fruit's Old box scores ~1 here, ~0.1 against the enclosed volume.
   std::vector<TruthFruit> box;
   double box_resolution = 0.0;  // [m] the cells `box` was made for (runEpisode checks it)
+  // Centres of the fruits the paper does not score (not red): estimates nearer one of them
+  // than any scored fruit are left out of the evaluation, neither matches nor false matches.
+  std::vector<Eigen::Vector3d> not_scored;
+  std::vector<FruitEstimate> scoredEstimates(std::vector<FruitEstimate> estimates) const;
 };
-// All three from the scene's ground-truth fruits; `resolution` is the ROI octree's.
+// All three from the scene's red ground-truth fruits; `resolution` is the ROI octree's.
 SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution);
 
 // Called after every view (e.g. to publish it); return false to stop the episode.
