@@ -1,8 +1,8 @@
 // run_trials: episodes of the viewpoint planner on a scene, Old (ROI octree boxes) and SE
 // (superellipsoids) evaluated side by side after every view, as in the paper's tables.
 //   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
-//              [--profile ideal|paper] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR
-//              [--json] [--jobs J]
+//              [--profile ideal|paper] [--red-test hsv|upstream] [--no-shape-targets] [--no-noise]
+//              [--input-voxel M] --out DIR [--json] [--jobs J]
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
   std::string spec, out;
   int trials = 1, jobs = 0;
   bool json = false;
-  std::string profile = "ideal";
+  std::string profile = "ideal", red_test = "hsv";
   PlannerParams base;
   for (int i = 1; i < argc; ++i) {
     auto need = [&](const char* flag) { return !std::strcmp(argv[i], flag) && i + 1 < argc; };
@@ -113,12 +113,15 @@ int main(int argc, char** argv) {
     else if (need("--jobs")) jobs = std::atoi(argv[++i]);
     else if (need("--input-voxel")) base.input_voxel = std::atof(argv[++i]);
     else if (need("--profile")) profile = argv[++i];
+    else if (need("--red-test")) red_test = argv[++i];
     else if (!std::strcmp(argv[i], "--no-shape-targets")) base.shape_targets = false;
     else if (!std::strcmp(argv[i], "--no-noise")) base.depth_noise = false;
     else if (!std::strcmp(argv[i], "--json")) json = true;
     else {
       std::cerr << "usage: run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K] "
-                   "[--profile ideal|paper] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR [--json] [--jobs J]\n"
+                   "[--profile ideal|paper] [--red-test hsv|upstream] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR\n"
+                   "[--json] [--jobs J]\n"
+                   "  --red-test upstream  pointcloud_roi's HSI test instead of this simulator's HSV one\n"
                    "  --profile paper  the paper's depth noise and blur, estimator every 3 s, compute time on the clock,\n"
                    "                   no ground truth in planning (arm and textures: not yet)\n"
                    "  --input-voxel M  feed the estimators pointcloud_roi's output: the cloud downsampled to M (0.01)\n";
@@ -135,6 +138,11 @@ int main(int argc, char** argv) {
     std::cerr << "run_trials: --profile must be ideal or paper\n";
     return 2;
   }
+  if (red_test != "hsv" && red_test != "upstream") {
+    std::cerr << "run_trials: --red-test must be hsv or upstream\n";
+    return 2;
+  }
+  base.upstream_red_test = red_test == "upstream";
   if (trials < 1 || trials > 1000 || !(base.duration > 0) || !std::isfinite(base.duration)) {
     std::cerr << "run_trials: --trials must be 1..1000 and --duration a positive number of seconds\n";
     return 2;
@@ -211,7 +219,7 @@ int main(int argc, char** argv) {
   for (const auto& r : results) views_per.push_back(r.views.size());
   std::ofstream js(out + "/results.json");
   std::ostringstream body;
-  body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"trials\": " << trials << ", \"duration_s\": "
+  body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"red_test\": " << jsonString(red_test) << ", \"trials\": " << trials << ", \"duration_s\": "
        << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
        << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << truth.enclosed.size() << ", \"unscored_fruits\": " << truth.not_scored.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
        << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean);

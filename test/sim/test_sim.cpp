@@ -211,6 +211,26 @@ TEST(RgbdRenderer, PaperNoiseIsStructuredAndBlursEdgesIntoMixedDepths) {
   EXPECT_GT(mixed, edge / 2);
 }
 
+TEST(FruitMask, UpstreamHsiTestAsPointcloudRoiApplies) {
+  RedThreshold upstream;
+  upstream.test = RedThreshold::Test::kUpstream;
+  // The scenario files' colours: red fruit in, yellow fruit and leaves out; the brown stems
+  // (hue 27) pass too, as they would upstream: false positives of the paper's pipeline.
+  EXPECT_TRUE(upstream.isRed(176, 22, 14));
+  EXPECT_TRUE(upstream.isRed(150, 18, 12));
+  EXPECT_FALSE(upstream.isRed(162, 154, 35));  // hue 40 > 35
+  EXPECT_FALSE(upstream.isRed(46, 104, 32));
+  EXPECT_TRUE(upstream.isRed(92, 74, 44));
+  EXPECT_FALSE(RedThreshold().isRed(92, 74, 44));
+  // A red fruit in shadow falls below intensity 30: the upstream test misses it, the HSV one not.
+  EXPECT_FALSE(upstream.isRed(62, 8, 5));
+  EXPECT_TRUE(RedThreshold().isRed(62, 8, 5));
+  // Hue just inside and outside its bounds (units of 1/128 half-turn): magenta-red and orange.
+  EXPECT_TRUE(upstream.isRed(200, 40, 60));
+  EXPECT_FALSE(upstream.isRed(200, 20, 140));
+  EXPECT_FALSE(upstream.isRed(40, 40, 40));  // grey: no saturation
+}
+
 TEST(FruitTruth, ClosedOpenAndDoubleSidedBoxesHaveExactVolumes) {
   for (int variant = 0; variant < 3; ++variant) {
     Scene s = toyScene();

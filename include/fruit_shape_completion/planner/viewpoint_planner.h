@@ -42,6 +42,7 @@ struct PlannerParams {
   double input_voxel = 0.0;
   // The paper-like profile's parts (paperProfile()); the defaults are the ideal simulation.
   bool paper_depth_noise = false;   // the paper's structured noise and blur (sim::DepthNoise::kPaper)
+  bool upstream_red_test = false;   // pointcloud_roi's HSI red test (sim::RedThreshold::kUpstream)
   bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
   double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
   bool charge_compute_time = false; // the planner's and estimators' wall time adds to the clock

@@ -11,8 +11,12 @@
 namespace fruit_shape_completion {
 namespace sim {
 
-// HSV-style red test: hue within max_hue_deg of 0 (red), enough saturation and brightness.
+// The red test. kHsv: hue within max_hue_deg of 0 (red), enough saturation and brightness.
+// kUpstream: pointcloud_roi's test on PCL's packed HSI (hue in 1/128 half-turns, saturation and
+// intensity 0-255): fruit unless hue < -20 or > 35, saturation < 30 or intensity < 30.
 struct RedThreshold {
+  enum class Test { kHsv, kUpstream };
+  Test test = Test::kHsv;
   double max_hue_deg = 20.0;
   double min_saturation = 0.5;
   double min_value = 0.12;  // 0..1
