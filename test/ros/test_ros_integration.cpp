@@ -127,6 +127,14 @@ struct FruitOnALeaf {
   }
 };
 
+// `~shape_estimators` under nh, as the planner's launch file sets it: one estimator.
+void setOneEstimator(const ros::NodeHandle& nh, const std::string& name, const std::string& type) {
+  XmlRpc::XmlRpcValue list;
+  list[0]["name"] = name;
+  list[0]["type"] = type;
+  nh.setParam("shape_estimators", list);
+}
+
 }  // namespace
 
 TEST(UpstreamMessages, Md5sumsEqualGenmsgsFromTheUpstreamFiles) {
@@ -143,10 +151,7 @@ TEST(UpstreamMessages, Md5sumsEqualGenmsgsFromTheUpstreamFiles) {
 
 TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUnseenSide) {
   ros::NodeHandle nh("~/glue");
-  XmlRpc::XmlRpcValue list;
-  list[0]["name"] = "superellipsoid";
-  list[0]["type"] = "fruit_shape_completion/SuperellipsoidEstimator";
-  nh.setParam("shape_estimators", list);
+  setOneEstimator(nh, "superellipsoid", "fruit_shape_completion/SuperellipsoidEstimator");
   nh.setParam("superellipsoid/superellipsoids_topic", "superellipsoids");
   ros_io::RoiPlannerShapeEstimators estimators(nh, "world");
   const FruitOnALeaf s;
@@ -355,10 +360,7 @@ TEST(Plugin, FullResolutionFruitCloudTopicFeedsTheMapInsteadOfThePlannersViews) 
 
 TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
   ros::NodeHandle nh("~/bad_name");
-  XmlRpc::XmlRpcValue list;
-  list[0]["name"] = "shape";
-  list[0]["type"] = "fruit_shape_completion/NoSuchEstimator";
-  nh.setParam("shape_estimators", list);
+  setOneEstimator(nh, "shape", "fruit_shape_completion/NoSuchEstimator");
   ros_io::ShapeEstimatorLoader loader;
   try {
     loader.load(nh, "world");
@@ -368,8 +370,7 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
     EXPECT_NE(std::string(e.what()).find("SuperellipsoidEstimator"), std::string::npos) << e.what();  // known types listed
   }
   ros::NodeHandle bad("~/bad_param");
-  list[0]["type"] = "fruit_shape_completion/SuperellipsoidEstimator";
-  bad.setParam("shape_estimators", list);
+  setOneEstimator(bad, "shape", "fruit_shape_completion/SuperellipsoidEstimator");
   bad.setParam("shape/alpha", -1.0);
   try {
     loader.load(bad, "world");
