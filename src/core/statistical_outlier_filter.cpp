@@ -16,13 +16,14 @@ void OutlierFilterParams::validate() const {
     throw std::invalid_argument("outlier filter search_radius must be a finite value > 0");
 }
 
-double meanNeighbourDistance(std::vector<double>* d2, const OutlierFilterParams& params) {
-  const std::size_t k = static_cast<std::size_t>(params.k);
-  if (d2->size() < k) return params.search_radius;
-  std::nth_element(d2->begin(), d2->begin() + static_cast<long>(k - 1), d2->end());
+NearestDistances::NearestDistances(std::size_t points, const OutlierFilterParams& params)
+    : k_(static_cast<std::size_t>(params.k)), search_radius_(params.search_radius), d2_(points * k_), count_(points, 0) {}
+
+double NearestDistances::meanDistance(std::size_t i) const {
+  if (count_[i] < k_) return search_radius_;
   double m = 0.0;
-  for (std::size_t j = 0; j < k; ++j) m += std::sqrt((*d2)[j]);
-  return m / static_cast<double>(k);
+  for (std::size_t j = 0; j < k_; ++j) m += std::sqrt(d2_[i * k_ + j]);
+  return m / static_cast<double>(k_);
 }
 
 std::vector<char> flagOutliers(const std::vector<double>& statistic, const OutlierFilterParams& params) {
@@ -47,14 +48,14 @@ std::vector<char> flagOutliers(const std::vector<double>& statistic, const Outli
 
 std::vector<char> findStatisticalOutliers(const PointList& points, const OutlierFilterParams& params) {
   const NeighbourGrid grid(points, params.search_radius);
-  std::vector<double> statistic(points.size(), std::numeric_limits<double>::quiet_NaN()), d2;
-  grid.forEachPoint(params.search_radius, [&](int i, auto&& within) {
-    d2.clear();
-    within([&](int j, double dd, const Point&) {
-      if (j != i) d2.push_back(dd);
-    });
-    statistic[static_cast<std::size_t>(i)] = meanNeighbourDistance(&d2, params);
+  NearestDistances nearest(points.size(), params);
+  grid.forEachPair(params.search_radius, [&](int i, int j, double dd) {
+    nearest.add(static_cast<std::size_t>(i), dd);
+    nearest.add(static_cast<std::size_t>(j), dd);
   });
+  std::vector<double> statistic(points.size(), std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (points[i].allFinite()) statistic[i] = nearest.meanDistance(i);
   return flagOutliers(statistic, params);
 }
 

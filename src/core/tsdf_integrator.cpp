@@ -108,39 +108,6 @@ MergedView mergePerVoxel(const PointList& points, const Eigen::Vector3d& origin,
   return view;
 }
 
-// The k smallest squared distances seen so far for each point, in ascending order.
-class NearestDistances {
- public:
-  NearestDistances(std::size_t points, int k) : k_(static_cast<std::size_t>(k)), d2_(points * k_), count_(points, 0) {}
-  void add(std::size_t i, double d2) {
-    double* row = &d2_[i * k_];
-    std::size_t n = count_[i];
-    if (n == k_) {
-      if (d2 >= row[k_ - 1]) return;
-      --n;
-    }
-    while (n > 0 && row[n - 1] > d2) {
-      row[n] = row[n - 1];
-      --n;
-    }
-    row[n] = d2;
-    count_[i] = std::min(count_[i] + 1, k_);
-  }
-  // The statistic of StatisticalOutlierRemoval: the mean distance to the k nearest, or the
-  // search radius for a point with fewer than k neighbours within it.
-  double meanDistance(std::size_t i, double search_radius) const {
-    if (count_[i] < k_) return search_radius;
-    double m = 0.0;
-    for (std::size_t j = 0; j < k_; ++j) m += std::sqrt(d2_[i * k_ + j]);
-    return m / static_cast<double>(k_);
-  }
-
- private:
-  std::size_t k_;
-  std::vector<double> d2_;
-  std::vector<std::size_t> count_;
-};
-
 // One neighbourhood pass over the merged end points gives both the outlier flags and the
 // normals of the incidence-limited band (NaN where a point has none). Both relations are
 // symmetric, so each close pair is measured once and counted for both points.
@@ -154,7 +121,7 @@ void analyseNeighbourhoods(const PointList& ends, const TsdfIntegratorParams& pa
   const double outlier_r2 = params.outliers.search_radius * params.outliers.search_radius;
   const double normal_r2 = np.radius * np.radius;
   const double radius = std::max(find_outliers ? params.outliers.search_radius : 0.0, find_normals ? np.radius : 0.0);
-  NearestDistances nearest(find_outliers ? ends.size() : 0, params.outliers.k);
+  NearestDistances nearest(find_outliers ? ends.size() : 0, params.outliers);
   std::vector<NeighbourMoments> moments(find_normals ? ends.size() : 0);
   for (NeighbourMoments& m : moments) m.add(Eigen::Vector3d::Zero());  // the point itself
   const NeighbourGrid grid(ends, radius);
@@ -173,7 +140,7 @@ void analyseNeighbourhoods(const PointList& ends, const TsdfIntegratorParams& pa
   if (find_outliers) {
     std::vector<double> statistic(ends.size(), std::numeric_limits<double>::quiet_NaN());
     for (std::size_t i = 0; i < ends.size(); ++i)
-      if (ends[i].allFinite()) statistic[i] = nearest.meanDistance(i, params.outliers.search_radius);
+      if (ends[i].allFinite()) statistic[i] = nearest.meanDistance(i);
     *outlier = flagOutliers(statistic, params.outliers);
   }
   if (find_normals) {
