@@ -44,12 +44,6 @@ std::uint64_t fileSize(const std::string& path) {
   return in ? static_cast<std::uint64_t>(in.tellg()) : 0;
 }
 
-bool hasXyz(const pcl::PCLPointCloud2& cloud) {
-  int found = 0;
-  for (const auto& f : cloud.fields) found += f.name == "x" || f.name == "y" || f.name == "z";
-  return found == 3;
-}
-
 // The x, y, z of every point (float or double fields), non-finite ones included (the
 // pipeline counts them). PCL's own conversion to PointXYZ takes float fields only.
 CloudFile pointsOf(const pcl::PCLPointCloud2& blob, const std::string& path) {
@@ -81,18 +75,23 @@ CloudFile pointsOf(const pcl::PCLPointCloud2& blob, const std::string& path) {
   return out;
 }
 
-// PCL's readers size their buffers from the header (and its point size is 32 bits): the
-// header is checked against the file first, so a lying one is refused instead of allocating
-// what it claims.
-std::string checkPcdHeader(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line;
-  std::vector<std::uint64_t> sizes, counts;
+// A whole token that is a number (strtod's syntax: nan and inf included).
+bool parseNumber(const std::string& token, double* value) {
+  char* end = nullptr;
+  *value = std::strtod(token.c_str(), &end);
+  return end != token.c_str() && *end == '\0';
+}
+
+struct PcdHeader {
   std::vector<std::string> fields, types;
-  std::string version;
+  std::vector<std::uint64_t> sizes, counts;
+  std::string version, data;
   std::uint64_t width = 1, height = 1, points = 0;
-  bool has_points = false, has_width = false;
-  std::string data;
+  bool has_width = false, has_points = false;
+};
+
+// Reads the header's lines up to DATA; "" or what is wrong with them.
+std::string readPcdHeader(std::istream& in, PcdHeader* h) {
   auto numbers = [](std::istringstream& ls, std::vector<std::uint64_t>* out) {
     long double v;
     while (ls >> v) {
@@ -101,30 +100,30 @@ std::string checkPcdHeader(const std::string& path) {
     }
     return true;
   };
-  while (data.empty() && std::getline(in, line)) {
+  std::string line;
+  while (h->data.empty() && std::getline(in, line)) {
     // The header is text; PCL's parser misreads control bytes in it (a NUL inside a key made
     // its reader crash on an otherwise sound file).
     for (unsigned char c : line)
       if ((c < 0x20 && c != '\t' && c != '\r') || c >= 0x7f) return "malformed PCD header: a byte that is not text";
     std::istringstream ls(line);
-    std::string key;
+    std::string key, word;
     ls >> key;
     long double v = 0;
     bool ok = true;
-    std::string word;
-    if (key == "FIELDS") while (ls >> word) fields.push_back(word);
-    else if (key == "TYPE") while (ls >> word) types.push_back(word);
-    else if (key == "SIZE") ok = numbers(ls, &sizes);
-    else if (key == "COUNT") ok = numbers(ls, &counts);
+    if (key == "FIELDS") while (ls >> word) h->fields.push_back(word);
+    else if (key == "TYPE") while (ls >> word) h->types.push_back(word);
+    else if (key == "SIZE") ok = numbers(ls, &h->sizes);
+    else if (key == "COUNT") ok = numbers(ls, &h->counts);
     else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
       ok = (ls >> v) && v >= 0 && v <= 1e12;
-      (key == "WIDTH" ? width : key == "HEIGHT" ? height : points) = ok ? static_cast<std::uint64_t>(v) : 0;
-      has_points = has_points || key == "POINTS";
-      has_width = has_width || key == "WIDTH";
+      (key == "WIDTH" ? h->width : key == "HEIGHT" ? h->height : h->points) = ok ? static_cast<std::uint64_t>(v) : 0;
+      h->has_points = h->has_points || key == "POINTS";
+      h->has_width = h->has_width || key == "WIDTH";
     } else if (key == "DATA") {
-      ls >> data;
+      ls >> h->data;
     } else if (key == "VERSION") {
-      ls >> version;
+      ls >> h->version;
     } else if (!key.empty() && key[0] != '#' && key != "VIEWPOINT") {
       // PCL ignores what it does not know, and then reads such files wrongly (a misspelt
       // VERSION line made it crash): a version 0.7 header has these keys only.
@@ -132,65 +131,90 @@ std::string checkPcdHeader(const std::string& path) {
     }
     if (!ok) return "malformed PCD header: bad " + key + " (counts up to 1e6, sizes up to 1e12)";
   }
-  if (data.empty()) return "malformed PCD header: no DATA line";
-  if (version != "0.7" && version != ".7") return "malformed PCD header: VERSION 0.7 expected";
+  return "";
+}
+
+// The header's fields against each other; "" or what is wrong.
+std::string checkPcdFields(PcdHeader* h) {
+  if (h->data.empty()) return "malformed PCD header: no DATA line";
+  if (h->version != "0.7" && h->version != ".7") return "malformed PCD header: VERSION 0.7 expected";
   // PCL's reader trusts these to agree (a compressed file without fields crashes it).
-  if (fields.empty() || sizes.size() != fields.size() || types.size() != fields.size() ||
-      (!counts.empty() && counts.size() != fields.size()))
+  const std::size_t n = h->fields.size();
+  if (n == 0 || h->sizes.size() != n || h->types.size() != n || (!h->counts.empty() && h->counts.size() != n))
     return "malformed PCD header: FIELDS, SIZE, TYPE and COUNT must list the same number of fields";
   for (const char* axis : {"x", "y", "z"})
-    if (std::find(fields.begin(), fields.end(), axis) == fields.end()) return "the cloud has no x, y, z fields";
-  for (std::size_t k = 0; k < fields.size(); ++k)
-    if (types[k].size() != 1 || std::string("FIU").find(types[k][0]) == std::string::npos ||
-        (sizes[k] != 1 && sizes[k] != 2 && sizes[k] != 4 && sizes[k] != 8) || (!counts.empty() && counts[k] == 0))
-      return "malformed PCD header: field '" + fields[k] + "' has a bad TYPE, SIZE or COUNT";
-  if (!has_width) return "malformed PCD header: no WIDTH line";
-  if (!has_points) points = width * height;
-  if (has_width && points != width * height) return "malformed PCD header: POINTS differs from WIDTH x HEIGHT";
-  std::uint64_t point_step = 0;
-  for (std::size_t k = 0; k < sizes.size(); ++k) point_step += sizes[k] * (k < counts.size() ? counts[k] : 1);
+    if (std::find(h->fields.begin(), h->fields.end(), axis) == h->fields.end()) return "the cloud has no x, y, z fields";
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint64_t size = h->sizes[k];
+    if (h->types[k].size() != 1 || std::string("FIU").find(h->types[k][0]) == std::string::npos ||
+        (size != 1 && size != 2 && size != 4 && size != 8) || (!h->counts.empty() && h->counts[k] == 0))
+      return "malformed PCD header: field '" + h->fields[k] + "' has a bad TYPE, SIZE or COUNT";
+  }
+  if (!h->has_width) return "malformed PCD header: no WIDTH line";
+  if (!h->has_points) h->points = h->width * h->height;
+  if (h->points != h->width * h->height) return "malformed PCD header: POINTS differs from WIDTH x HEIGHT";
+  return "";
+}
+
+// PCL's ascii reader trusts every line to hold the header's values (a line of control bytes
+// made it crash): each is checked here, one point per line.
+std::string checkPcdAsciiPoints(std::istream& in, std::uint64_t values, std::uint64_t points) {
+  std::string line, token;
+  std::uint64_t lines = 0;
+  double number;
+  while (std::getline(in, line)) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream ls(line);
+    std::uint64_t n = 0;
+    for (; ls >> token; ++n)
+      if (!parseNumber(token, &number))
+        return "point line " + std::to_string(lines + 1) + " holds something that is not a number";
+    if (n != values)
+      return "point line " + std::to_string(lines + 1) + " has " + std::to_string(n) + " values, the header " +
+             std::to_string(values);
+    if (++lines > points) break;
+  }
+  if (lines != points)
+    return "the header promises " + std::to_string(points) + " points, the file holds " + std::to_string(lines);
+  return "";
+}
+
+// PCL's readers size their buffers from the header (and its point size is 32 bits): the
+// header is checked against the file first, so a lying one is refused instead of allocating
+// what it claims.
+std::string checkPcdHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  PcdHeader h;
+  std::string problem = readPcdHeader(in, &h);
+  if (problem.empty()) problem = checkPcdFields(&h);
+  if (!problem.empty()) return problem;
+  std::uint64_t point_step = 0, values = 0;
+  for (std::size_t k = 0; k < h.sizes.size(); ++k) {
+    const std::uint64_t count = k < h.counts.size() ? h.counts[k] : 1;
+    point_step += h.sizes[k] * count;
+    values += count;
+  }
   if (point_step > 65536) return "malformed PCD header: points of more than 64 KiB";
   const std::uint64_t data_at = static_cast<std::uint64_t>(in.tellg()), size = fileSize(path);
-  if (data == "ascii") {
-    if (points > size) return "more points in the header than the file can hold";
-    // PCL's ascii reader trusts every line to hold the header's values (a line of control
-    // bytes made it crash): each is checked here, one point per line.
-    std::uint64_t values = 0;
-    for (std::size_t k = 0; k < fields.size(); ++k) values += counts.empty() ? 1 : counts[k];
-    std::uint64_t lines = 0;
-    while (std::getline(in, line)) {
-      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-      std::istringstream ls(line);
-      std::string token;
-      std::uint64_t n = 0;
-      while (ls >> token) {
-        char* end = nullptr;
-        std::strtod(token.c_str(), &end);
-        if (end == token.c_str() || *end != '\0')
-          return "point line " + std::to_string(lines + 1) + " holds something that is not a number";
-        ++n;
-      }
-      if (n != values)
-        return "point line " + std::to_string(lines + 1) + " has " + std::to_string(n) + " values, the header " +
-               std::to_string(values);
-      if (++lines > points) break;
-    }
-    if (lines != points)
-      return "the header promises " + std::to_string(points) + " points, the file holds " + std::to_string(lines);
-  } else if (data == "binary") {
-    if (data_at + points * point_step > size)
-      return "the file is shorter than its header's " + std::to_string(points) + " points need";
-  } else if (data == "binary_compressed") {
+  if (h.data == "ascii") {
+    if (h.points > size) return "more points in the header than the file can hold";
+    return checkPcdAsciiPoints(in, values, h.points);
+  }
+  if (h.data == "binary") {
+    if (data_at + h.points * point_step > size)
+      return "the file is shorter than its header's " + std::to_string(h.points) + " points need";
+    return "";
+  }
+  if (h.data == "binary_compressed") {
     std::uint32_t packed[2] = {0, 0};  // compressed and uncompressed size, then the LZF stream
     if (!in.read(reinterpret_cast<char*>(packed), sizeof(packed))) return "truncated compressed data";
     if (data_at + 8 + packed[0] > size) return "the file is shorter than its compressed size";
     // LZF expands at most ~256 bytes from 3 bytes of back reference.
-    if (packed[1] != points * point_step || std::uint64_t(packed[1]) > 100 * (std::uint64_t(packed[0]) + 1))
+    if (packed[1] != h.points * point_step || std::uint64_t(packed[1]) > 100 * (std::uint64_t(packed[0]) + 1))
       return "impossible compressed sizes for the header's points";
-  } else {
-    return "malformed PCD header: unknown DATA '" + data + "'";
+    return "";
   }
-  return "";
+  return "malformed PCD header: unknown DATA '" + h.data + "'";
 }
 
 CloudFile readPcd(const std::string& path) {
@@ -199,7 +223,6 @@ CloudFile readPcd(const std::string& path) {
   pcl::PCDReader reader;
   pcl::PCLPointCloud2 blob;
   if (reader.read(path, blob) < 0) return fail(path, "malformed PCD file");
-  if (!hasXyz(blob)) return fail(path, "malformed PCD: the cloud has no x, y, z fields");
   return pointsOf(blob, path);
 }
 
@@ -269,10 +292,7 @@ CloudFile readPly(const std::string& path) {
   Eigen::Quaternionf orientation;
   int version = 0;
   if (reader.read(path, blob, origin, orientation, version) < 0) return fail(path, "malformed or truncated PLY file");
-  if (!hasXyz(blob)) return fail(path, "the cloud has no x, y, z fields");
-  if (binary && blob.data.size() < static_cast<std::size_t>(blob.width) * blob.height * blob.point_step)
-    return fail(path, "truncated vertex data");
-  return pointsOf(blob, path);
+  return pointsOf(blob, path);  // which checks the x, y, z fields and the data's length
 }
 
 // "0,5 0,2 0,3": whitespace-separated columns whose numbers hold a comma between digits would
@@ -312,8 +332,7 @@ CloudFile readText(const std::string& path) {
     std::string tok[3];
     double v[3];
     for (int k = 0; k < 3; ++k) {
-      char* end = nullptr;
-      if (!(ls >> tok[k]) || (v[k] = std::strtod(tok[k].c_str(), &end), *end != '\0')) {
+      if (!(ls >> tok[k]) || !parseNumber(tok[k], &v[k])) {
         std::ostringstream os;
         os << "line " << line_no << ": expected 'x y z' numbers, got '" << line.substr(0, 80) << "'";
         return fail(path, os.str());
