@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <unordered_set>
@@ -152,6 +153,12 @@ std::string PlannerParams::problem() const {
   if (!(std::isfinite(clearance) && clearance >= 0.0)) return "clearance must be >= 0";
   if (render_threads < 1) return "render_threads must be >= 1";
   if (!(std::isfinite(estimator_period) && estimator_period >= 0.0)) return "estimator_period must be >= 0";
+  if (arm) {
+    const std::string m = arm_motion.problem();
+    if (!m.empty()) return m;
+    if (!(arm_collision_resolution >= 0.002 && arm_collision_resolution <= 0.1))
+      return "arm_collision_resolution must be in [0.002, 0.1] m";
+  }
   return {};
 }
 
@@ -162,6 +169,10 @@ PlannerParams paperProfile(PlannerParams p) {
   p.explore_plants = false;
   p.estimator_period = 3.0;  // the paper's surface cloud came every 3 s
   p.charge_compute_time = true;
+  p.arm = true;
+  // Per plan: a MoveIt planning request, the trajectory's start and settling, and waiting for a
+  // fresh frame before the next plan.
+  p.view_cost = 1.5;
   return p;
 }
 
@@ -186,6 +197,15 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     return result;
   }
   if (truth.enclosed.empty()) result.message = "the scene has no ground-truth fruits; figures stay zero";
+  std::unique_ptr<sim::RobotArm> arm;
+  sim::ArmState state;
+  if (p.arm) {
+    if (scene.robot.kind == sim::RobotMount::Kind::kNone) {
+      result.message = "the planner was asked to move the arm, but the scene has no robot mount; no views taken";
+      return result;
+    }
+    arm = std::make_unique<sim::RobotArm>(scene, p.arm_collision_resolution);
+  }
 
   std::mt19937 rng(p.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -200,6 +220,29 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   int views_without_gain = 0;
   Eigen::Vector3d plants_center = Eigen::Vector3d::Zero();
   for (const auto& pl : scene.plants) plants_center += pl.position / std::max<std::size_t>(1, scene.plants.size());
+
+  if (arm) {
+    // Start from a home posture near the start view, then the start view itself or, if the arm
+    // cannot take it, the nearest reachable view looking at the same point.
+    sim::ArmState home;
+    home.q << 0, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0;
+    home.base = scene.robot.kind == sim::RobotMount::Kind::kPole
+                    ? scene.robot.base
+                    : Eigen::Vector3d(std::clamp(pos.x(), scene.robot.xy_min.x(), scene.robot.xy_max.x()),
+                                      std::clamp(pos.y(), scene.robot.xy_min.y(), scene.robot.xy_max.y()), scene.robot.top);
+    std::normal_distribution<double> g(0.0, 1.0);
+    bool placed = false;
+    for (int i = 0; i < 2000 && !placed; ++i) {
+      const Eigen::Vector3d c = i == 0 ? pos : pos + (0.02 + 0.3 * i / 2000.0) * Eigen::Vector3d(g(rng), g(rng), g(rng));
+      if ((c - look).norm() < 0.05 || !scene.workspace.contains(c)) continue;
+      placed = arm->reach(PinholeCamera::lookingAt(c, look), home, p.arm_motion, &state) == sim::RobotArm::Reach::kReached;
+      if (placed) pos = c;
+    }
+    if (!placed) {
+      result.message = "the arm (" + scene.robot.describe() + ") reaches no view near the camera start; no views taken";
+      return result;
+    }
+  }
 
   std::size_t seen_points = 0, seen_fruit = 0;
   for (int view = 0;; ++view) {
@@ -287,16 +330,34 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       struct Candidate {
         Eigen::Vector3d pos, look;
         double gain;
+        sim::ArmState state;
       };
       std::vector<Candidate> cands;
+      // The arm's inverse kinematics and collision checks run here, on the planning clock.
       auto tryCandidate = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& target, const KeySet* interest_set) {
-        if (!scene.workspace.contains(c) || (c - target).norm() < 1e-3 || !renderer.isClear(c, p.clearance)) return;
+        if (!scene.workspace.contains(c) || (c - target).norm() < 1e-3) return;
         const PinholeCamera cc = PinholeCamera::lookingAt(c, target);
-        cands.push_back({c, target, viewGain(tree, cc, p, interest_set)});
+        sim::ArmState reached;
+        if (arm) {
+          ++result.sampled_views;
+          switch (arm->reach(cc, state, p.arm_motion, &reached)) {
+            case sim::RobotArm::Reach::kReached: ++result.reachable_views; break;
+            case sim::RobotArm::Reach::kNoInverse: ++result.unreachable_ik; return;
+            case sim::RobotArm::Reach::kJointLimits: ++result.unreachable_limits; return;
+            case sim::RobotArm::Reach::kCollision: ++result.unreachable_collision; return;
+          }
+        } else if (!renderer.isClear(c, p.clearance)) {
+          return;
+        }
+        cands.push_back({c, target, viewGain(tree, cc, p, interest_set), reached});
       };
+      // Without an arm every sample is a candidate; with one, unreachable samples are replaced,
+      // up to four times as many tries.
+      auto enough = [&](int tries) { return tries >= 4 * p.candidates || (!arm && tries >= p.candidates) ||
+                                            static_cast<int>(cands.size()) >= p.candidates; };
       std::normal_distribution<double> g(0.0, 1.0);
       if (!targets.empty()) {
-        for (int i = 0; i < p.candidates; ++i) {
+        for (int i = 0; !enough(i); ++i) {
           const Eigen::Vector3d& target = targets[static_cast<std::size_t>(unit(rng) * targets.size()) % targets.size()];
           Eigen::Vector3d dir(g(rng), g(rng), g(rng));
           dir.normalize();
@@ -314,7 +375,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         if (!p.explore_plants)
           for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
             if (tree.isNodeOccupied(*it)) seen.emplace_back(it.getX(), it.getY(), it.getZ());
-        for (int i = 0; i < p.candidates; ++i) {
+        for (int i = 0; !enough(i); ++i) {
           const Eigen::Vector3d c = scene.workspace.box_min +
                                     (scene.workspace.box_max - scene.workspace.box_min).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
           Eigen::Vector3d target;
@@ -345,8 +406,17 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           if (result.message.empty()) result.message = "no view in the workspace sees anything new; episode ended early";
           break;
         }
-        // Stay, but turn to look elsewhere.
-        look = pos + Eigen::Vector3d(g(rng), g(rng), 0.2 * g(rng)).normalized();
+        // Stay, but turn to look elsewhere (if the arm can).
+        const Eigen::Vector3d turn = pos + Eigen::Vector3d(g(rng), g(rng), 0.2 * g(rng)).normalized();
+        sim::ArmState turned;
+        if (!arm) {
+          look = turn;
+        } else if (arm->reach(PinholeCamera::lookingAt(pos, turn), state, p.arm_motion, &turned) ==
+                   sim::RobotArm::Reach::kReached) {
+          t += arm->motionTime(state, turned, p.arm_motion);
+          state = turned;
+          look = turn;
+        }
         continue;
       }
       views_without_gain = 0;
@@ -359,7 +429,12 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           best = &c;
         }
       }
-      t += (best->pos - pos).norm() / p.speed;
+      if (arm) {
+        t += arm->motionTime(state, best->state, p.arm_motion);
+        state = best->state;
+      } else {
+        t += (best->pos - pos).norm() / p.speed;
+      }
       pos = best->pos;
       look = best->look;
     } catch (const std::exception& e) {

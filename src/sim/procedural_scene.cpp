@@ -201,6 +201,10 @@ Scene generateProceduralScene(const ProceduralSceneParams& p) {
   // The camera works from the aisles: in front of the first row, between rows, behind the last.
   scene.workspace.box_min = Eigen::Vector3d(-0.5 * row_length - 0.5, 0.0, 0.15);
   scene.workspace.box_max = Eigen::Vector3d(0.5 * row_length + 0.5, 0.6 + (p.rows - 1) * p.row_spacing + 0.6, 1.3);
+  // A gantry over the rows, as in the paper's scenarios 2 and 3.
+  scene.robot.kind = RobotMount::Kind::kGantry;
+  scene.robot.xy_min = scene.workspace.box_min.head<2>();
+  scene.robot.xy_max = scene.workspace.box_max.head<2>();
   scene.camera_start_position = Eigen::Vector3d(0.0, 0.15, 0.8);
   scene.camera_start_look_at = Eigen::Vector3d(0.0, 0.6, 0.45);
   return scene;
@@ -293,6 +297,15 @@ bool writeSceneFiles(const Scene& scene, const std::string& dir, std::string* er
   yaml << "workspace:\n  box_min: " << v3(scene.workspace.box_min) << "\n  box_max: " << v3(scene.workspace.box_max) << '\n';
   if (scene.workspace.has_reach)
     yaml << "  reach_center: " << v3(scene.workspace.reach_center) << "\n  reach_radius: " << scene.workspace.reach_radius << '\n';
+  const RobotMount& rb = scene.robot;
+  auto v2 = [](const Eigen::Vector2d& v) { return "[" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + "]"; };
+  if (rb.kind == RobotMount::Kind::kPole)
+    yaml << "robot: {arm: ur5e, mount: pole, base: " << v3(rb.base) << ", pole_radius: " << rb.pole_radius << "}\n";
+  else if (rb.kind == RobotMount::Kind::kGantry)
+    yaml << "robot: {arm: ur5e, mount: gantry, xy_min: " << v2(rb.xy_min) << ", xy_max: " << v2(rb.xy_max)
+         << ", top: " << rb.top << ", max_drop: " << rb.max_drop << ", pole_radius: " << rb.pole_radius << "}\n";
+  else
+    yaml << "robot: {mount: none}\n";
   yaml << "camera_start: {position: " << v3(scene.camera_start_position) << ", look_at: " << v3(scene.camera_start_look_at) << "}\n";
   if (!yaml) return fail("write error");
   return true;

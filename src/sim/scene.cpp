@@ -19,6 +19,19 @@ bool Workspace::contains(const Eigen::Vector3d& p) const {
   return !has_reach || (p - reach_center).norm() <= reach_radius;
 }
 
+std::string RobotMount::describe() const {
+  std::ostringstream os;
+  if (kind == Kind::kPole)
+    os << "UR5e upright on a pole, base at (" << base.transpose() << ")";
+  else if (kind == Kind::kGantry)
+    os << "UR5e hanging from a gantry, base x in [" << xy_min.x() << ", " << xy_max.x() << "], y in [" << xy_min.y()
+       << ", " << xy_max.y() << "], z in [" << top - max_drop << ", " << top << "]";
+  else
+    os << "no arm (free camera)";
+  if (inferred) os << " (inferred: the scene file has no robot entry)";
+  return os.str();
+}
+
 int Scene::materialIndex(const std::string& name) const {
   for (std::size_t i = 0; i < materials.size(); ++i)
     if (materials[i].name == name) return static_cast<int>(i);
@@ -183,6 +196,40 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
         scene.workspace.reach_radius = finiteNumber(ws["reach_radius"], "reach_radius", kMaxCoordinate);
         if (!(scene.workspace.reach_radius > 0)) throw std::runtime_error("reach_radius must be > 0");
       }
+    }
+    where = "robot: ";
+    if (const YAML::Node rb = root["robot"]) {
+      const std::string mount = rb["mount"] ? rb["mount"].as<std::string>() : "";
+      if (rb["arm"] && rb["arm"].as<std::string>() != "ur5e") throw std::runtime_error("arm must be ur5e");
+      if (rb["pole_radius"]) scene.robot.pole_radius = finiteNumber(rb["pole_radius"], "pole_radius", 1.0);
+      if (mount == "pole") {
+        scene.robot.kind = RobotMount::Kind::kPole;
+        scene.robot.base = vec3(rb["base"], "base");
+      } else if (mount == "gantry") {
+        scene.robot.kind = RobotMount::Kind::kGantry;
+        for (const char* key : {"xy_min", "xy_max"}) {
+          const YAML::Node n = rb[key];
+          if (!n || !n.IsSequence() || n.size() != 2) throw std::runtime_error(std::string(key) + " must be a list of 2 numbers");
+          Eigen::Vector2d& v = std::string(key) == "xy_min" ? scene.robot.xy_min : scene.robot.xy_max;
+          v = Eigen::Vector2d(finiteNumber(n[0], key, kMaxCoordinate), finiteNumber(n[1], key, kMaxCoordinate));
+        }
+        if (!(scene.robot.xy_min.array() <= scene.robot.xy_max.array()).all())
+          throw std::runtime_error("xy_min must not exceed xy_max");
+        scene.robot.top = finiteNumber(rb["top"], "top", kMaxCoordinate);
+        scene.robot.max_drop = finiteNumber(rb["max_drop"], "max_drop", 100.0);
+        if (scene.robot.max_drop < 0) throw std::runtime_error("max_drop must be >= 0");
+      } else if (mount != "none") {
+        throw std::runtime_error("mount must be pole, gantry or none");
+      }
+    } else if (scene.workspace.has_reach) {
+      // Files written before the robot entry: an arm's reach sphere means a fixed pole there;
+      // otherwise the paper's other set-up, the gantry.
+      scene.robot.kind = RobotMount::Kind::kPole;
+      scene.robot.base = scene.workspace.reach_center;
+      scene.robot.inferred = true;
+    } else {
+      scene.robot.kind = RobotMount::Kind::kGantry;
+      scene.robot.inferred = true;
     }
     where = "camera_start: ";
     if (const YAML::Node cs = root["camera_start"]) {

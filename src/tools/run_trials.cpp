@@ -2,7 +2,7 @@
 // (superellipsoids) evaluated side by side after every view, as in the paper's tables.
 //   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
 //              [--profile ideal|paper] [--red-test hsv|upstream] [--no-shape-targets] [--no-noise]
-//              [--input-voxel M] --out DIR [--json] [--jobs J]
+//              [--input-voxel M] [--velocity-scaling S] [--plan-overhead S] --out DIR [--json] [--jobs J]
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
@@ -103,6 +103,7 @@ int main(int argc, char** argv) {
   bool json = false;
   std::string profile = "ideal", red_test = "hsv";
   PlannerParams base;
+  double velocity_scaling = -1, plan_overhead = -1;  // < 0: the profile's
   for (int i = 1; i < argc; ++i) {
     auto need = [&](const char* flag) { return !std::strcmp(argv[i], flag) && i + 1 < argc; };
     if (need("--scene")) spec = argv[++i];
@@ -114,6 +115,8 @@ int main(int argc, char** argv) {
     else if (need("--input-voxel")) base.input_voxel = std::atof(argv[++i]);
     else if (need("--profile")) profile = argv[++i];
     else if (need("--red-test")) red_test = argv[++i];
+    else if (need("--velocity-scaling")) velocity_scaling = std::atof(argv[++i]);
+    else if (need("--plan-overhead")) plan_overhead = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--no-shape-targets")) base.shape_targets = false;
     else if (!std::strcmp(argv[i], "--no-noise")) base.depth_noise = false;
     else if (!std::strcmp(argv[i], "--json")) json = true;
@@ -123,7 +126,9 @@ int main(int argc, char** argv) {
                    "[--json] [--jobs J]\n"
                    "  --red-test upstream  pointcloud_roi's HSI test instead of this simulator's HSV one\n"
                    "  --profile paper  the paper's depth noise and blur, estimator every 3 s, compute time on the clock,\n"
-                   "                   no ground truth in planning (arm and textures: not yet)\n"
+                   "                   no ground truth in planning, the scene's UR5e carries the camera\n"
+                   "  --velocity-scaling S  the arm's share of its rated joint speed and acceleration (paper profile: 0.5)\n"
+                   "  --plan-overhead S     seconds per plan besides motion and compute (ideal: 2, paper: 1.5)\n"
                    "  --input-voxel M  feed the estimators pointcloud_roi's output: the cloud downsampled to M (0.01)\n";
       return 2;
     }
@@ -143,6 +148,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   base.upstream_red_test = red_test == "upstream";
+  if (velocity_scaling >= 0) base.arm_motion.velocity_scaling = base.arm_motion.acceleration_scaling = velocity_scaling;
+  if (plan_overhead >= 0) base.view_cost = plan_overhead;
+  if (const std::string bad = base.problem(); !bad.empty()) {
+    std::cerr << "run_trials: " << bad << "\n";
+    return 2;
+  }
   if (trials < 1 || trials > 1000 || !(base.duration > 0) || !std::isfinite(base.duration)) {
     std::cerr << "run_trials: --trials must be 1..1000 and --duration a positive number of seconds\n";
     return 2;
@@ -215,14 +226,29 @@ int main(int argc, char** argv) {
     }
     return v;
   };
-  std::vector<double> views_per;
-  for (const auto& r : results) views_per.push_back(r.views.size());
+  std::vector<double> views_per, reachable;
+  long sampled = 0, ik = 0, limits = 0, collision = 0;
+  for (const auto& r : results) {
+    views_per.push_back(r.views.size());
+    if (r.sampled_views > 0) reachable.push_back(double(r.reachable_views) / r.sampled_views);
+    sampled += r.sampled_views;
+    ik += r.unreachable_ik;
+    limits += r.unreachable_limits;
+    collision += r.unreachable_collision;
+  }
+  const MeanStd reach = meanStd(reachable);
   std::ofstream js(out + "/results.json");
   std::ostringstream body;
   body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"red_test\": " << jsonString(red_test) << ", \"trials\": " << trials << ", \"duration_s\": "
        << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
        << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << truth.enclosed.size() << ", \"unscored_fruits\": " << truth.not_scored.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
-       << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean);
+       << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean) << ", \"robot\": "
+       << jsonString(base.arm ? scene.robot.describe() : "none (free camera)") << ", \"velocity_scaling\": "
+       << jsonNumber(base.arm ? base.arm_motion.velocity_scaling : 0.0) << ", \"plan_overhead_s\": " << jsonNumber(base.view_cost);
+  if (base.arm)
+    body << ", \"reachable_fraction\": {\"mean\": " << jsonNumber(reach.mean) << ", \"std\": " << jsonNumber(reach.std)
+         << "}, \"unreachable\": {\"sampled\": " << sampled << ", \"no_inverse\": " << ik << ", \"joint_limits\": " << limits
+         << ", \"collision\": " << collision << "}";
   for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0)}) {
     body << ", \"" << label << "\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_true))
          << ", \"se\": " << subsetsJson(collect(t, &ViewRecord::se_true))
@@ -256,6 +282,11 @@ int main(int argc, char** argv) {
                 scene.name.c_str(), truth.enclosed.size(), truth.not_scored.size(), trials, base.duration, base.shape_targets ? "on" : "off",
                 meanStd(views_per).mean, meanStd(wall).mean);
     if (!messages.empty()) std::printf("note: %s\n", messages.c_str());
+    if (base.arm && sampled > 0)
+      std::printf("arm: %s; %.1f +- %.1f %% of sampled views reachable (of %ld unreachable: %.0f %% no inverse kinematics, "
+                  "%.0f %% joint limits, %.0f %% collision)\n", scene.robot.describe().c_str(), 100 * reach.mean, 100 * reach.std,
+                  ik + limits + collision, 100.0 * ik / std::max(1L, ik + limits + collision),
+                  100.0 * limits / std::max(1L, ik + limits + collision), 100.0 * collision / std::max(1L, ik + limits + collision));
     std::printf("fruit mask against the labels, per episode: %.2f +- %.2f %% of red-fruit pixels missed, "
                 "%.3f +- %.3f %% of other pixels taken for fruit\n", 100 * fn.mean, 100 * fn.std, 100 * fp.mean, 100 * fp.std);
     printTable("after the full duration, against the enclosed (true) volume:", collect(base.duration, &ViewRecord::old_true),

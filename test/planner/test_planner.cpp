@@ -386,6 +386,37 @@ TEST(ViewpointPlanner, ShortEpisodeFindsAndMeasuresTheFruits) {
   EXPECT_LT(last.se_true.ma50.center_error_cm, 1.5);
 }
 
+TEST(ViewpointPlanner, TheArmTakesOnlyViewsItReachesAndItsMotionCostsTime) {
+  SimulatedScene s("procedural:3");
+  ASSERT_EQ(s.scene.robot.kind, sim::RobotMount::Kind::kGantry);
+  PlannerParams p = paperProfile();
+  p.duration = 45;
+  p.render_threads = 2;
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, p);
+  ASSERT_GE(r.views.size(), 3u) << r.message;
+  EXPECT_GT(r.reachable_views, 0);
+  EXPECT_EQ(r.sampled_views, r.reachable_views + r.unreachable_ik + r.unreachable_limits + r.unreachable_collision);
+  const sim::RobotArm arm(s.scene);
+  for (std::size_t i = 0; i < r.views.size(); ++i) {
+    const Eigen::Vector3d& c = r.views[i].position;
+    // The camera hangs below the gantry within the arm's reach, outside the plants.
+    EXPECT_LE(c.z(), s.scene.robot.top + 0.2);
+    EXPECT_GT(arm.plantDistance(c), 0.01) << "view " << i;
+    if (i > 0) EXPECT_GE(r.views[i].time - r.views[i - 1].time, p.view_cost);
+  }
+  std::printf("[ report   ] procedural:3, arm, 45 s: %zu views, %d of %d sampled views reachable\n", r.views.size(),
+              r.reachable_views, r.sampled_views);
+  // Without a mount there is no arm to move.
+  sim::Scene free_camera = s.scene;
+  free_camera.robot.kind = sim::RobotMount::Kind::kNone;
+  ShapeEstimatorHost host2;
+  const EpisodeResult none = runEpisode(free_camera, *s.renderer, s.truth, host2, p);
+  EXPECT_TRUE(none.views.empty());
+  EXPECT_NE(none.message.find("no robot mount"), std::string::npos) << none.message;
+}
+
 TEST(ViewpointPlanner, BadScenesGiveAMessageAndAValidResult) {
   SimulatedScene s("procedural:4");
   PlannerParams p;

@@ -3,13 +3,15 @@
 // planner: render a view, insert it into the ROI octree, hand it to the shape estimators,
 // collect targets (ROI contours + the estimators' predicted surface), sample views around
 // them and take the best by utility (unknown cells near targets seen along the camera rays,
-// minus travel). Each view costs simulated time: travel at `speed` plus a fixed `view_cost`
-// for planning and capture; the episode ends when `duration` is spent.
+// minus travel). Each view costs simulated time: a fixed `view_cost` for planning and capture
+// plus the travel, either the camera flying at `speed` or (params.arm) the scene's UR5e moving
+// in joint space, only to views it can reach; the episode ends when `duration` is spent.
 #include <fruit_shape_completion/planner/evaluation.h>
 #include <fruit_shape_completion/planner/roi_octree.h>
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
+#include <fruit_shape_completion/sim/robot_arm.h>
 
 #include <cstdint>
 #include <functional>
@@ -46,12 +48,17 @@ struct PlannerParams {
   bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
   double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
   bool charge_compute_time = false; // the planner's and estimators' wall time adds to the clock
+  // The scene's arm carries the camera: only views with a collision-free inverse kinematics
+  // solution are sampled, travel takes the joint-space motion time.
+  bool arm = false;
+  sim::ArmMotion arm_motion;
+  double arm_collision_resolution = 0.01;  // [m] cells of the plants' distance field
   // Empty if usable, else what is wrong (runEpisode refuses to start with it).
   std::string problem() const;
 };
 
-// The parts of the paper's set-up simulated so far: its depth noise, an estimator refreshed
-// every 3 s, compute time on the episode clock, and no ground truth in planning.
+// The paper's set-up: its depth noise, an estimator refreshed every 3 s, compute time on the
+// episode clock, no ground truth in planning, the UR5e on its mount with a per-plan overhead.
 PlannerParams paperProfile(PlannerParams base = PlannerParams());
 
 struct ViewRecord {
@@ -75,6 +82,8 @@ struct EpisodeResult {
   // pixels it missed, and other pixels it took for fruit.
   std::uint64_t mask_positives = 0, mask_false_negatives = 0;
   std::uint64_t mask_negatives = 0, mask_false_positives = 0;
+  // With the arm: candidate views sampled and those it could reach; why the others failed.
+  int sampled_views = 0, reachable_views = 0, unreachable_ik = 0, unreachable_limits = 0, unreachable_collision = 0;
   int dropped_views = 0;       // views that threw and were skipped
   std::string dropped_reason;  // the first one's exception
 };

@@ -28,6 +28,20 @@ struct Workspace {
   bool contains(const Eigen::Vector3d& p) const;
 };
 
+// Where the camera's arm stands (the paper's simulation): a UR5e upright on a fixed pole, or
+// hanging upside down from a pole on a ceiling gantry that moves its base to
+// (x, y, top - drop), x and y within xy_min..xy_max, drop within 0..max_drop.
+struct RobotMount {
+  enum class Kind { kNone, kPole, kGantry };
+  Kind kind = Kind::kNone;  // kNone: a free-flying camera (the ideal simulation)
+  Eigen::Vector3d base = Eigen::Vector3d(0, 0, 0.86);  // kPole: the arm's base
+  Eigen::Vector2d xy_min = Eigen::Vector2d(-1, -1), xy_max = Eigen::Vector2d(1, 1);  // kGantry
+  double top = 1.69, max_drop = 0.5;                                                  // kGantry [m]
+  double pole_radius = 0.05;
+  bool inferred = false;  // the scene file had no `robot:` entry; loadScene chose this one
+  std::string describe() const;
+};
+
 struct ScenePlant {
   std::string mesh;         // path as given in the scene file (resolved against its folder)
   std::string fruit_truth;  // optional fruit-only mesh of the same plant
@@ -46,6 +60,7 @@ struct Scene {
   std::vector<int> triangle_material;           // index into materials
   std::vector<int> triangle_plant;              // index into plants
   Workspace workspace;
+  RobotMount robot;
   Eigen::Vector3d camera_start_position = Eigen::Vector3d(0, 0, 1);
   Eigen::Vector3d camera_start_look_at = Eigen::Vector3d(0, 1, 1);
 

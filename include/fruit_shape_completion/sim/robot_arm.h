@@ -1,0 +1,66 @@
+#pragma once
+// The camera's arm as in the paper's simulation: a UR5e on its mount (scene.robot), a camera
+// 2 cm beyond the flange looking along the tool axis. Decides whether a camera pose can be
+// reached (inverse kinematics within the joint limits, no link capsule inside the plants, the
+// pole or the arm's own shoulder) and how long the arm takes to get there.
+#include <fruit_shape_completion/sim/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/scene.h>
+#include <fruit_shape_completion/sim/ur5e_kinematics.h>
+
+#include <memory>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace sim {
+
+struct ArmState {
+  Eigen::Vector3d base = Eigen::Vector3d::Zero();  // world position of the arm's base
+  JointVector q = JointVector::Zero();
+};
+
+// Time-optimal point-to-point motion per axis (trapezoidal velocity), all axes arriving
+// together: what a joint-space trajectory executed at these scaled limits takes.
+struct ArmMotion {
+  // The planner scales the arm's rated speed as MoveIt's max_velocity_scaling_factor does.
+  double velocity_scaling = 0.5, acceleration_scaling = 0.5;
+  double joint_velocity = ur5e::kMaxVelocity;  // [rad/s] before scaling
+  double joint_acceleration = 3.14;            // [rad/s^2] before scaling
+  double gantry_velocity = 0.5, gantry_acceleration = 0.5;  // [m/s], [m/s^2] before scaling
+  std::string problem() const;  // empty if usable
+};
+
+class RobotArm {
+ public:
+  static constexpr double kCameraOffset = 0.02;  // [m] lens beyond the flange
+
+  // Builds the plants' distance field (collision_resolution cells). Throws
+  // std::invalid_argument for a scene without an arm (robot.kind == kNone).
+  explicit RobotArm(const Scene& scene, double collision_resolution = 0.01);
+  ~RobotArm();
+  RobotArm(const RobotArm&) = delete;
+  RobotArm& operator=(const RobotArm&) = delete;
+
+  enum class Reach { kReached, kNoInverse, kJointLimits, kCollision };
+  // The collision-free state with the camera at `camera` (position and orientation) that is
+  // quickest to reach from `from`; on the gantry the base may move too.
+  Reach reach(const PinholeCamera& camera, const ArmState& from, const ArmMotion& motion, ArmState* to) const;
+  double motionTime(const ArmState& from, const ArmState& to, const ArmMotion& motion) const;
+
+  Eigen::Isometry3d baseToWorld(const Eigen::Vector3d& base) const;  // upright or upside down
+  Eigen::Isometry3d cameraPose(const ArmState& state) const;        // camera frame (z forward) in the world
+  std::vector<Capsule> worldCapsules(const ArmState& state) const;  // ur5e::Link order, then the pole
+  bool collides(const ArmState& state) const;
+  // Lower bound of the distance from p to the plants' triangles [m].
+  double plantDistance(const Eigen::Vector3d& p) const;
+  const RobotMount& mount() const { return mount_; }
+
+ private:
+  struct Field;
+  RobotMount mount_;
+  std::unique_ptr<Field> field_;
+};
+
+const char* toString(RobotArm::Reach r);
+
+}  // namespace sim
+}  // namespace fruit_shape_completion
