@@ -164,8 +164,8 @@ std::string PlannerParams::problem() const {
 
 PlannerParams paperProfile(PlannerParams p) {
   p.paper_depth_noise = true;
-  // Not yet upstream_red_test: on the scene files' flat colours it takes the brown stems for
-  // fruit, which the stem texture (hue 73 degrees) would not be.
+  p.textures = true;
+  p.upstream_red_test = true;
   p.explore_plants = false;
   p.estimator_period = 3.0;  // the paper's surface cloud came every 3 s
   p.charge_compute_time = true;

@@ -15,10 +15,18 @@ namespace {
 
 enum Material { kRed = 0, kRedDark, kYellow, kLeaf, kLeafLight, kStem };
 
+// The mean colours of the capsicum model's textures (their opaque texels).
 std::vector<SceneMaterial> proceduralMaterials() {
-  return {{"fruit_red", {{176, 22, 14}}, true},   {"fruit_red_dark", {{150, 18, 12}}, true},
-          {"fruit_yellow", {{162, 154, 35}}, true}, {"leaf", {{46, 104, 32}}, false},
-          {"leaf_light", {{58, 120, 44}}, false},   {"stem", {{92, 74, 44}}, false}};
+  auto material = [](const char* name, std::array<std::uint8_t, 3> rgb, bool fruit) {
+    SceneMaterial m;
+    m.name = name;
+    m.rgb = rgb;
+    m.fruit = fruit;
+    return m;
+  };
+  return {material("fruit_red", {{227, 88, 23}}, true),   material("fruit_red_dark", {{204, 41, 9}}, true),
+          material("fruit_yellow", {{162, 154, 35}}, true), material("leaf", {{60, 83, 22}}, false),
+          material("leaf_light", {{60, 79, 18}}, false),    material("stem", {{101, 118, 40}}, false)};
 }
 
 // A plant's geometry in its own frame (origin at the stem base, z up).

@@ -1,4 +1,5 @@
 #include "parallel_parts.h"
+#include <fruit_shape_completion/sim/image_io.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 
 #include <embree3/rtcore.h>
@@ -18,6 +19,18 @@ struct RgbdRenderer::Impl {
   std::vector<int> triangle_material;
   std::vector<int> triangle_fruit;
   std::vector<std::array<std::uint8_t, 3>> colors;
+  Shading shading;
+  bool textured = false;  // textures on and the scene has texture coordinates
+  std::vector<Eigen::Vector3i> triangles;
+  std::vector<Eigen::Vector2f> uvs;
+  std::vector<std::shared_ptr<const RgbaImage>> textures;  // per material, or null
+  std::vector<char> alpha_cut;                             // per material
+
+  Eigen::Vector2f uvAt(unsigned prim, float u, float v) const {
+    const Eigen::Vector3i& t = triangles[prim];
+    return (1.0f - u - v) * uvs[static_cast<std::size_t>(t[0])] + u * uvs[static_cast<std::size_t>(t[1])] +
+           v * uvs[static_cast<std::size_t>(t[2])];
+  }
 };
 
 namespace {
@@ -71,9 +84,22 @@ void applyPaperDepthNoise(RgbdFrame* frame, const DepthNoise& noise) {
   depth.swap(blurred);
 }
 
+// Embree's hit filter: hits on a leaf where its texture is transparent do not count.
+void alphaCut(const RTCFilterFunctionNArguments* args) {
+  const auto* impl = static_cast<const RgbdRenderer::Impl*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    const int mat = impl->triangle_material[prim];
+    if (!impl->alpha_cut[static_cast<std::size_t>(mat)]) continue;
+    const Eigen::Vector2f uv = impl->uvAt(prim, RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i));
+    if (impl->textures[static_cast<std::size_t>(mat)]->texel(uv.x(), uv.y())[3] < 128) args->valid[i] = 0;
+  }
+}
+
 }  // namespace
 
-RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit) : impl_(new Impl) {
+RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit, const Shading& shading) : impl_(new Impl) {
   // Embree aborts the process on extreme coordinates: refuse them here with a message.
   for (const auto& v : scene.vertices)
     if (!v.allFinite() || v.cwiseAbs().maxCoeff() > kMaxCoordinate)
@@ -86,6 +112,20 @@ RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit) 
   for (int m : scene.triangle_material)
     if (m < 0 || m >= static_cast<int>(scene.materials.size()))
       throw std::invalid_argument("scene '" + scene.name + "' has a triangle with an unknown material");
+  impl_->shading = shading;
+  if (!(shading.light_direction.allFinite() && shading.light_direction.norm() > 0.0))
+    throw std::invalid_argument("the light direction must be a finite, non-zero vector");
+  impl_->triangle_material = scene.triangle_material;
+  impl_->textured = shading.textures && scene.uvs.size() == scene.vertices.size() && !scene.vertices.empty();
+  if (impl_->textured) {
+    impl_->triangles = scene.triangles;
+    impl_->uvs = scene.uvs;
+    for (const auto& m : scene.materials) {
+      impl_->textures.push_back(m.texture);
+      impl_->alpha_cut.push_back(m.texture && m.texture->has_alpha);
+    }
+  }
+  const bool any_cut = std::find(impl_->alpha_cut.begin(), impl_->alpha_cut.end(), 1) != impl_->alpha_cut.end();
   impl_->device = rtcNewDevice("threads=1");
   if (impl_->device == nullptr) throw std::runtime_error("embree: cannot create a device");
   impl_->scene = rtcNewScene(impl_->device);
@@ -100,12 +140,16 @@ RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit) 
                                                                3 * sizeof(unsigned), scene.triangles.size()));
     for (std::size_t i = 0; i < scene.triangles.size(); ++i)
       for (int k = 0; k < 3; ++k) idx[3 * i + k] = static_cast<unsigned>(scene.triangles[i][k]);
+    if (any_cut) {
+      rtcSetGeometryUserData(geom, impl_.get());
+      rtcSetGeometryIntersectFilterFunction(geom, alphaCut);
+      rtcSetGeometryOccludedFilterFunction(geom, alphaCut);
+    }
     rtcCommitGeometry(geom);
     rtcAttachGeometry(impl_->scene, geom);
     rtcReleaseGeometry(geom);
   }
   rtcCommitScene(impl_->scene);
-  impl_->triangle_material = scene.triangle_material;
   impl_->triangle_fruit = std::move(triangle_fruit);
   impl_->triangle_fruit.resize(scene.triangles.size(), -1);
   for (const auto& m : scene.materials) impl_->colors.push_back(m.rgb);
@@ -135,7 +179,8 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
   const std::array<std::uint8_t, 3> background = {{180, 190, 200}};
 
   // Shades one pixel from its hit (t = range along the unit ray d), or the background.
-  auto shadePixel = [&](int u, int v, const Eigen::Vector3d& d, bool hit, float t, unsigned prim,
+  const Eigen::Vector3d to_light = -impl_->shading.light_direction.normalized();
+  auto shadePixel = [&](int u, int v, const Eigen::Vector3d& d, bool hit, float t, unsigned prim, float bu, float bv,
                         const Eigen::Vector3d& ng, std::mt19937& rng, std::normal_distribution<double>& gauss) {
     const std::size_t px = static_cast<std::size_t>(v) * cam.width + u;
     std::uint8_t* out = &frame.rgb[3 * px];
@@ -146,10 +191,24 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
     const int mat = impl_->triangle_material[prim];
     frame.material[px] = mat;
     frame.fruit[px] = impl_->triangle_fruit[prim];
-    const double cos_inc = std::abs(ng.normalized().dot(d));
-    const double shade = 0.35 + 0.65 * cos_inc;  // light at the camera
-    for (int k = 0; k < 3; ++k)
-      out[k] = static_cast<std::uint8_t>(std::min(255.0, impl_->colors[mat][k] * shade + 0.5));
+    const Eigen::Vector3d n = ng.normalized();
+    const double cos_inc = std::abs(n.dot(d));
+    if (impl_->shading.textures) {
+      // Lit from the side the camera sees: leaves are drawn on both faces.
+      const Eigen::Vector3d facing = n.dot(d) > 0.0 ? Eigen::Vector3d(-n) : n;
+      const double shade = std::min(1.0, impl_->shading.ambient + impl_->shading.diffuse * std::max(0.0, facing.dot(to_light)));
+      std::array<std::uint8_t, 3> base = impl_->colors[mat];
+      if (impl_->textured && impl_->textures[static_cast<std::size_t>(mat)]) {
+        const Eigen::Vector2f uv = impl_->uvAt(prim, bu, bv);
+        const auto texel = impl_->textures[static_cast<std::size_t>(mat)]->texel(uv.x(), uv.y());
+        base = {{texel[0], texel[1], texel[2]}};
+      }
+      for (int k = 0; k < 3; ++k) out[k] = static_cast<std::uint8_t>(base[k] * shade + 0.5);
+    } else {
+      const double shade = 0.35 + 0.65 * cos_inc;  // light at the camera
+      for (int k = 0; k < 3; ++k)
+        out[k] = static_cast<std::uint8_t>(std::min(255.0, impl_->colors[mat][k] * shade + 0.5));
+    }
     if (t < cam.min_range || t > cam.max_range) return;
     double z = t * d.dot(axis);
     if (noise.enabled && noise.model == DepthNoise::Model::kIndependent) {
@@ -197,7 +256,7 @@ RgbdFrame RgbdRenderer::render(const PinholeCamera& cam, const DepthNoise& noise
         for (int i = 0; i < 16; ++i) {
           if (!valid[i]) continue;
           shadePixel(4 * tx + (i & 3), 4 * ty + (i >> 2), dirs[i], rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID,
-                     rh.ray.tfar[i], rh.hit.primID[i],
+                     rh.ray.tfar[i], rh.hit.primID[i], rh.hit.u[i], rh.hit.v[i],
                      Eigen::Vector3d(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rng, gauss);
         }
       }

@@ -1,3 +1,4 @@
+#include <fruit_shape_completion/sim/image_io.h>
 #include <fruit_shape_completion/sim/scene.h>
 
 #include <assimp/Importer.hpp>
@@ -71,11 +72,13 @@ bool placedVertexOk(const Eigen::Vector3f& v, const std::string& path, std::stri
   return false;
 }
 
-// Reads a mesh's triangles (world frame) with their material indices in `scene`.
+// Reads a mesh's triangles (world frame) with their material indices in `scene`; if asked,
+// the vertices' texture coordinates and the texture file each scene material's mesh names.
 bool readMesh(const std::string& path, const Eigen::Vector3d& position, double yaw, const Scene& scene,
               bool fruit_only, std::vector<Eigen::Vector3f>* vertices,
               std::vector<Eigen::Vector3i>* triangles, std::vector<int>* triangle_material,
-              std::string* error) {
+              std::string* error, std::vector<Eigen::Vector2f>* uvs = nullptr,
+              std::vector<std::string>* material_texture = nullptr) {
   {
     std::ifstream probe(path);
     if (!probe) {
@@ -102,6 +105,16 @@ bool readMesh(const std::string& path, const Eigen::Vector3d& position, double y
       return false;
     }
     if (fruit_only && !scene.materials[mat].fruit) continue;
+    aiString texture;
+    if (material_texture && ai->mMaterials[mesh->mMaterialIndex]->GetTexture(aiTextureType_DIFFUSE, 0, &texture) == AI_SUCCESS &&
+        texture.length > 0) {
+      material_texture->resize(scene.materials.size());
+      (*material_texture)[static_cast<std::size_t>(mat)] = resolve(dirOf(path), texture.C_Str());
+    }
+    if (uvs)
+      for (unsigned v = 0; v < mesh->mNumVertices; ++v)
+        uvs->emplace_back(mesh->HasTextureCoords(0) ? Eigen::Vector2f(mesh->mTextureCoords[0][v].x, mesh->mTextureCoords[0][v].y)
+                                                    : Eigen::Vector2f::Zero());
     const int base = static_cast<int>(vertices->size());
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
       const Eigen::Vector3f p(mesh->mVertices[v].x, mesh->mVertices[v].y, mesh->mVertices[v].z);
@@ -126,8 +139,9 @@ bool readMesh(const std::string& path, const Eigen::Vector3d& position, double y
 
 bool appendMesh(const std::string& path, const Eigen::Vector3d& position, double yaw, int plant,
                 Scene* scene, std::string* error) {
+  const bool with_uvs = scene->uvs.size() == scene->vertices.size();
   if (!readMesh(path, position, yaw, *scene, false, &scene->vertices, &scene->triangles,
-                &scene->triangle_material, error))
+                &scene->triangle_material, error, with_uvs ? &scene->uvs : nullptr))
     return false;
   scene->triangle_plant.resize(scene->triangles.size(), plant);
   return true;
@@ -243,9 +257,11 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
   // Plants often share a mesh file: read each file once, then place copies.
   struct Cached {
     std::vector<Eigen::Vector3f> vertices;
+    std::vector<Eigen::Vector2f> uvs;
     std::vector<Eigen::Vector3i> triangles;
     std::vector<int> material;
   };
+  std::vector<std::string> material_texture;
   std::vector<std::pair<std::string, Cached>> cache;
   for (std::size_t i = 0; i < scene.plants.size(); ++i) {
     const std::string file = resolve(dir, scene.plants[i].mesh);
@@ -254,7 +270,8 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
       if (c.first == file) mesh = &c.second;
     if (mesh == nullptr) {
       Cached c;
-      if (!readMesh(file, Eigen::Vector3d::Zero(), 0.0, scene, false, &c.vertices, &c.triangles, &c.material, error))
+      if (!readMesh(file, Eigen::Vector3d::Zero(), 0.0, scene, false, &c.vertices, &c.triangles, &c.material, error,
+                    &c.uvs, &material_texture))
         return false;
       cache.emplace_back(file, std::move(c));
       mesh = &cache.back().second;
@@ -267,11 +284,32 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
       scene.vertices.push_back(R * v + t);
       if (!placedVertexOk(scene.vertices.back(), file, error)) return false;
     }
+    scene.uvs.insert(scene.uvs.end(), mesh->uvs.begin(), mesh->uvs.end());
     for (std::size_t k = 0; k < mesh->triangles.size(); ++k) {
       scene.triangles.push_back(mesh->triangles[k] + Eigen::Vector3i::Constant(base));
       scene.triangle_material.push_back(mesh->material[k]);
       scene.triangle_plant.push_back(static_cast<int>(i));
     }
+  }
+  // Textures: a missing one leaves its material in the flat colour (noted); a broken one is an error.
+  for (std::size_t m = 0; m < material_texture.size(); ++m) {
+    const std::string& file = material_texture[m];
+    if (file.empty()) continue;
+    std::shared_ptr<const RgbaImage> shared;
+    for (const auto& other : scene.materials)
+      if (other.texture && other.texture_file == file) shared = other.texture;
+    if (!shared) {
+      if (!std::ifstream(file).good()) {
+        scene.notes.push_back("texture " + file + " of material " + scene.materials[m].name +
+                              " not found; drawn in its flat colour");
+        continue;
+      }
+      auto image = std::make_shared<RgbaImage>();
+      if (!readTga(file, image.get(), error)) return false;
+      shared = image;
+    }
+    scene.materials[m].texture = shared;
+    scene.materials[m].texture_file = file;
   }
   for (auto& p : scene.plants) {
     p.mesh = resolve(dir, p.mesh);

@@ -1,6 +1,8 @@
 // render_view: renders one RGB-D view of a scene and writes what the camera saw.
 //   render_view --scene FILE|procedural[:SEED] --camera x,y,z,look_x,look_y,look_z --out DIR
-//               [--no-noise] [--seed N]
+//               [--profile paper|ideal] [--no-noise] [--seed N]
+// Paper (default): textured, lit plants, the paper's depth noise, pointcloud_roi's red test;
+// ideal: flat colours, i.i.d. depth noise, this simulator's HSV red test.
 // DIR gets color.png, depth.png (16-bit, millimetres, 0 = no depth), mask.png (the red
 // thresholder: 255 = fruit), labels.png (ground truth: 255 = fruit pixel), fruit_cloud.ply and
 // full_cloud.ply (world frame).
@@ -24,18 +26,30 @@ using namespace fruit_shape_completion::sim;
 int main(int argc, char** argv) {
   std::string spec, camera_arg, out;
   DepthNoise noise;
+  std::string profile = "paper";
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--scene") && i + 1 < argc) spec = argv[++i];
     else if (!std::strcmp(argv[i], "--camera") && i + 1 < argc) camera_arg = argv[++i];
     else if (!std::strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
     else if (!std::strcmp(argv[i], "--no-noise")) noise.enabled = false;
+    else if (!std::strcmp(argv[i], "--profile") && i + 1 < argc) profile = argv[++i];
     else if (!std::strcmp(argv[i], "--seed") && i + 1 < argc) noise.seed = std::strtoul(argv[++i], nullptr, 10);
     else {
       std::cerr << "usage: render_view --scene FILE|procedural[:SEED] --camera x,y,z,look_x,look_y,look_z --out DIR "
-                   "[--no-noise] [--seed N]\n";
+                   "[--profile paper|ideal] [--no-noise] [--seed N]\n";
       return 2;
     }
   }
+  if (profile != "paper" && profile != "ideal") {
+    std::cerr << "render_view: --profile must be paper or ideal\n";
+    return 2;
+  }
+  const bool paper = profile == "paper";
+  Shading shading;
+  shading.textures = paper;
+  if (paper) noise.model = DepthNoise::Model::kPaper;
+  RedThreshold red_test;
+  if (paper) red_test.test = RedThreshold::Test::kUpstream;
   if (spec.empty() || out.empty()) {
     std::cerr << "render_view: --scene and --out are required\n";
     return 2;
@@ -67,9 +81,10 @@ int main(int argc, char** argv) {
   }
   std::vector<int> triangle_fruit;
   computeFruitTruth(scene, &triangle_fruit);
-  const RgbdRenderer renderer(scene, triangle_fruit);
+  for (const auto& note : scene.notes) std::cerr << "render_view: " << note << "\n";
+  const RgbdRenderer renderer(scene, triangle_fruit, shading);
   const RgbdFrame frame = renderer.render(PinholeCamera::lookingAt(pos, look), noise);
-  const std::vector<std::uint8_t> mask = redMask(frame.rgb, frame.width, frame.height);
+  const std::vector<std::uint8_t> mask = redMask(frame.rgb, frame.width, frame.height, red_test);
   const FrameClouds clouds = cloudsFromFrame(frame, mask);
 
   std::error_code mkdir_error;

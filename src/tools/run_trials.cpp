@@ -1,7 +1,7 @@
 // run_trials: episodes of the viewpoint planner on a scene, Old (ROI octree boxes) and SE
 // (superellipsoids) evaluated side by side after every view, as in the paper's tables.
 //   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
-//              [--profile ideal|paper] [--red-test hsv|upstream] [--no-shape-targets] [--no-noise]
+//              [--profile paper|ideal] [--red-test hsv|upstream] [--flat-colours] [--no-shape-targets] [--no-noise]
 //              [--input-voxel M] [--velocity-scaling S] [--plan-overhead S] --out DIR [--json] [--jobs J]
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
@@ -101,9 +101,10 @@ int main(int argc, char** argv) {
   std::string spec, out;
   int trials = 1, jobs = 0;
   bool json = false;
-  std::string profile = "ideal", red_test = "hsv";
+  std::string profile = "paper", red_test;  // red_test empty: the profile's
   PlannerParams base;
   double velocity_scaling = -1, plan_overhead = -1;  // < 0: the profile's
+  bool flat_colours = false;
   for (int i = 1; i < argc; ++i) {
     auto need = [&](const char* flag) { return !std::strcmp(argv[i], flag) && i + 1 < argc; };
     if (need("--scene")) spec = argv[++i];
@@ -119,14 +120,18 @@ int main(int argc, char** argv) {
     else if (need("--plan-overhead")) plan_overhead = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--no-shape-targets")) base.shape_targets = false;
     else if (!std::strcmp(argv[i], "--no-noise")) base.depth_noise = false;
+    else if (!std::strcmp(argv[i], "--flat-colours")) flat_colours = true;
     else if (!std::strcmp(argv[i], "--json")) json = true;
     else {
       std::cerr << "usage: run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K] "
-                   "[--profile ideal|paper] [--red-test hsv|upstream] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR\n"
+                   "[--profile paper|ideal] [--red-test hsv|upstream] [--flat-colours] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR\n"
                    "[--json] [--jobs J]\n"
-                   "  --red-test upstream  pointcloud_roi's HSI test instead of this simulator's HSV one\n"
-                   "  --profile paper  the paper's depth noise and blur, estimator every 3 s, compute time on the clock,\n"
-                   "                   no ground truth in planning, the scene's UR5e carries the camera\n"
+                   "  --profile paper  (default) the paper's depth noise and blur, estimator every 3 s, compute time on the\n"
+                   "                   clock, no ground truth in planning, the scene's UR5e carries the camera, textured\n"
+                   "                   and lit plants, pointcloud_roi's HSI red test\n"
+                   "  --profile ideal  flat colours lit from the camera, i.i.d. depth noise, a free-flying camera\n"
+                   "  --red-test hsv|upstream  this simulator's HSV test (ideal) or pointcloud_roi's HSI test (paper)\n"
+                   "  --flat-colours   the scene files' flat material colours instead of the textures\n"
                    "  --velocity-scaling S  the arm's share of its rated joint speed and acceleration (paper profile: 0.5)\n"
                    "  --plan-overhead S     seconds per plan besides motion and compute (ideal: 2, paper: 1.5)\n"
                    "  --input-voxel M  feed the estimators pointcloud_roi's output: the cloud downsampled to M (0.01)\n";
@@ -143,11 +148,14 @@ int main(int argc, char** argv) {
     std::cerr << "run_trials: --profile must be ideal or paper\n";
     return 2;
   }
-  if (red_test != "hsv" && red_test != "upstream") {
+  if (!red_test.empty() && red_test != "hsv" && red_test != "upstream") {
     std::cerr << "run_trials: --red-test must be hsv or upstream\n";
     return 2;
   }
-  base.upstream_red_test = red_test == "upstream";
+  if (red_test == "upstream") base.upstream_red_test = true;
+  if (red_test == "hsv") base.upstream_red_test = false;
+  if (flat_colours) base.textures = false;
+  red_test = base.upstream_red_test ? "upstream" : "hsv";
   if (velocity_scaling >= 0) base.arm_motion.velocity_scaling = base.arm_motion.acceleration_scaling = velocity_scaling;
   if (plan_overhead >= 0) base.view_cost = plan_overhead;
   if (const std::string bad = base.problem(); !bad.empty()) {
@@ -167,7 +175,9 @@ int main(int argc, char** argv) {
   std::vector<int> triangle_fruit;
   const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
   const SceneTruth truth = makeSceneTruth(fruits, base.octree_resolution);
-  const sim::RgbdRenderer renderer(scene, triangle_fruit);
+  sim::Shading shading;
+  shading.textures = base.textures;
+  const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
   std::error_code mkdir_error;
   std::filesystem::create_directories(out, mkdir_error);
 
@@ -239,7 +249,7 @@ int main(int argc, char** argv) {
   const MeanStd reach = meanStd(reachable);
   std::ofstream js(out + "/results.json");
   std::ostringstream body;
-  body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"red_test\": " << jsonString(red_test) << ", \"trials\": " << trials << ", \"duration_s\": "
+  body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"red_test\": " << jsonString(red_test) << ", \"textures\": " << (base.textures ? "true" : "false") << ", \"trials\": " << trials << ", \"duration_s\": "
        << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
        << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << truth.enclosed.size() << ", \"unscored_fruits\": " << truth.not_scored.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
        << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean) << ", \"robot\": "

@@ -1,5 +1,6 @@
 #include <fruit_shape_completion/sim/fruit_mask.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/image_io.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
 #include <gtest/gtest.h>
@@ -84,8 +85,8 @@ struct MaskScore {
   int on_leaf_or_stem, on_yellow, red_pixels;
 };
 
-MaskScore scoreMask(const Scene& scene, const RgbdFrame& frame) {
-  const std::vector<std::uint8_t> mask = redMask(frame.rgb, frame.width, frame.height);
+MaskScore scoreMask(const Scene& scene, const RgbdFrame& frame, const RedThreshold& test = RedThreshold()) {
+  const std::vector<std::uint8_t> mask = redMask(frame.rgb, frame.width, frame.height, test);
   MaskScore s{0, 0, 0, 0, 0};
   int tp = 0, fp = 0, fn = 0;
   for (std::size_t i = 0; i < mask.size(); ++i) {
@@ -298,6 +299,124 @@ TEST(SharedScenes, ScenarioOneHasFourteenRedFruitsOfRealisticSize) {
   EXPECT_GT(s.recall, 0.98);
   EXPECT_EQ(s.on_leaf_or_stem, 0);
   std::printf("[ report   ] scenario 1 mask: precision %.4f recall %.4f over %d red fruit pixels\n", s.precision, s.recall, s.red_pixels);
+
+  // As Gazebo draws it: every material textured, leaves cut by their alpha, the upstream HSI test.
+  ASSERT_EQ(scene.uvs.size(), scene.vertices.size());
+  for (const auto& mat : scene.materials) {
+    if (mat.name == "VG07frt0") continue;  // the yellow fruit: no plant of scenario 1 has it
+    ASSERT_TRUE(mat.texture) << mat.name;
+  }
+  Shading textured;
+  textured.textures = true;
+  const RgbdRenderer gazebo(scene, triangle_fruit, textured);
+  const RgbdFrame tf = gazebo.render(PinholeCamera::lookingAt(scene.camera_start_position, scene.camera_start_look_at), off);
+  RedThreshold upstream;
+  upstream.test = RedThreshold::Test::kUpstream;
+  const MaskScore ts = scoreMask(scene, tf, upstream);
+  EXPECT_GT(ts.red_pixels, 5000);
+  EXPECT_GT(ts.precision, 0.97);
+  EXPECT_GT(ts.recall, 0.9);
+  // The cut-away leaf margins let the camera see past them: fewer surface pixels than untextured.
+  int flat_hits = 0, cut_hits = 0;
+  for (std::size_t i = 0; i < tf.material.size(); ++i) {
+    flat_hits += frame.material[i] >= 0;
+    cut_hits += tf.material[i] >= 0;
+  }
+  EXPECT_LT(cut_hits, flat_hits);
+  std::printf("[ report   ] scenario 1 textured, upstream red test: precision %.4f recall %.4f; %d of %d surface pixels "
+              "left after the alpha cut\n", ts.precision, ts.recall, cut_hits, flat_hits);
+}
+
+TEST(ImageIo, TgaRunLengthAndPlainBothRowOrders) {
+  const std::string dir = ::testing::TempDir();
+  // 3 x 2, 32 bit, bottom row first, run-length: a run of 3 red, then 3 raw pixels.
+  const std::vector<unsigned char> rle = {0, 0, 10, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3, 0, 2, 0, 32, 8,
+                                          0x82, 0, 0, 255, 255,                             // 3 x red (BGRA)
+                                          0x02, 255, 0, 0, 255, 0, 255, 0, 0, 1, 2, 3, 128};  // blue, green (a 0), (3,2,1)
+  std::ofstream(dir + "/fsc.tga", std::ios::binary).write(reinterpret_cast<const char*>(rle.data()), rle.size());
+  RgbaImage img;
+  std::string err;
+  ASSERT_TRUE(readTga(dir + "/fsc.tga", &img, &err)) << err;
+  ASSERT_EQ(img.width, 3);
+  ASSERT_EQ(img.height, 2);
+  EXPECT_TRUE(img.has_alpha);
+  // The file's first row is the bottom one (v = 0).
+  EXPECT_EQ(img.texel(0.1, 0.2), (std::array<std::uint8_t, 4>{{255, 0, 0, 255}}));
+  EXPECT_EQ(img.texel(0.1, 0.7), (std::array<std::uint8_t, 4>{{0, 0, 255, 255}}));
+  EXPECT_EQ(img.texel(0.5, 0.7), (std::array<std::uint8_t, 4>{{0, 255, 0, 0}}));
+  EXPECT_EQ(img.texel(0.9, 1.7), (std::array<std::uint8_t, 4>{{3, 2, 1, 128}}));  // wrapped
+  // 1 x 2, 24 bit, plain, top row first.
+  const std::vector<unsigned char> plain = {0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 2, 0, 24, 0x20, 10, 20, 30, 40, 50, 60};
+  std::ofstream(dir + "/fsc2.tga", std::ios::binary).write(reinterpret_cast<const char*>(plain.data()), plain.size());
+  ASSERT_TRUE(readTga(dir + "/fsc2.tga", &img, &err)) << err;
+  EXPECT_FALSE(img.has_alpha);
+  EXPECT_EQ(img.texel(0.5, 0.9), (std::array<std::uint8_t, 4>{{30, 20, 10, 255}}));
+  // Broken files: a clear message, no image.
+  auto broken = [&](std::vector<unsigned char> bytes, const std::string& expect) {
+    std::ofstream(dir + "/fsc3.tga", std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+    err.clear();
+    EXPECT_FALSE(readTga(dir + "/fsc3.tga", &img, &err));
+    EXPECT_NE(err.find(expect), std::string::npos) << err;
+  };
+  broken(std::vector<unsigned char>(rle.begin(), rle.end() - 3), "truncated");
+  std::vector<unsigned char> overrun = rle;
+  overrun[18] = 0x86;  // a run of 7 in a 6-pixel image
+  broken(overrun, "past the image");
+  std::vector<unsigned char> mapped = plain;
+  mapped[1] = 1;
+  broken(mapped, "unsupported TGA type");
+  std::vector<unsigned char> huge = plain;
+  huge[12] = huge[13] = 0xff;
+  broken(huge, "1-16384");
+  broken({1, 2, 3}, "header");
+  EXPECT_FALSE(readTga(dir + "/missing.tga", &img, &err));
+}
+
+TEST(RgbdRenderer, TexturesAlphaCutAndOneLightAsGazeboDrawsThem) {
+  // A 1 m square at y = 1 facing the camera (at the origin, looking along +y); its texture is
+  // transparent on the left half (u < 0.5) and red on the right.
+  Scene s;
+  s.materials.resize(1);
+  s.materials[0].name = "leaf";
+  s.materials[0].rgb = {{0, 255, 0}};
+  auto tex = std::make_shared<RgbaImage>();
+  tex->width = 2;
+  tex->height = 1;
+  tex->has_alpha = true;
+  tex->rgba = {0, 0, 0, 0, 200, 100, 50, 255};
+  s.materials[0].texture = tex;
+  s.vertices = {{-0.5f, 1.f, -0.5f}, {0.5f, 1.f, -0.5f}, {0.5f, 1.f, 0.5f}, {-0.5f, 1.f, 0.5f}};
+  s.uvs = {{0.f, 0.f}, {1.f, 0.f}, {1.f, 1.f}, {0.f, 1.f}};
+  s.triangles = {{0, 1, 2}, {0, 2, 3}};
+  s.triangle_material = {0, 0};
+  s.triangle_plant = {0, 0};
+  Shading shading;
+  shading.textures = true;
+  shading.light_direction = Eigen::Vector3d(0, 1, -1);  // hits the square's face at 45 degrees
+  const RgbdRenderer renderer(s, {}, shading);
+  DepthNoise off;
+  off.enabled = false;
+  const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 1, 0));
+  const RgbdFrame f = renderer.render(cam, off);
+  const int v = cam.height / 2;
+  const std::size_t left = static_cast<std::size_t>(v) * cam.width + cam.width / 2 - 40;
+  const std::size_t right = static_cast<std::size_t>(v) * cam.width + cam.width / 2 + 40;
+  EXPECT_EQ(f.material[left], -1);  // cut away: the ray went through
+  EXPECT_TRUE(std::isnan(f.depth[left]));
+  EXPECT_EQ(renderer.castRay(Eigen::Vector3d::Zero(), cam.rayDirection(cam.width / 2 - 40, v), 5.0),
+            std::numeric_limits<double>::infinity());
+  ASSERT_EQ(f.material[right], 0);
+  EXPECT_NEAR(f.depth[right], 1.0, 1e-4);
+  const double shade = std::min(1.0, 0.4 + 0.8 * std::sqrt(0.5));  // ambient + diffuse cos 45
+  EXPECT_NEAR(f.rgb[3 * right], 200 * shade, 1.0);
+  EXPECT_NEAR(f.rgb[3 * right + 1], 100 * shade, 1.0);
+  EXPECT_NEAR(f.rgb[3 * right + 2], 50 * shade, 1.0);
+  // The same square untextured: flat colour, whole square solid.
+  const RgbdRenderer flat(s, {});
+  const RgbdFrame g = flat.render(cam, off);
+  EXPECT_EQ(g.material[left], 0);
+  EXPECT_EQ(g.rgb[3 * left], 0);
+  EXPECT_GT(g.rgb[3 * left + 1], 200);
 }
 
 TEST(ProceduralScene, ReproduciblePepperShapedAndYellowStaysOutOfTheMask) {

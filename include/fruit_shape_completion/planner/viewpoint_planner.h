@@ -45,6 +45,7 @@ struct PlannerParams {
   // The paper-like profile's parts (paperProfile()); the defaults are the ideal simulation.
   bool paper_depth_noise = false;   // the paper's structured noise and blur (sim::DepthNoise::kPaper)
   bool upstream_red_test = false;   // pointcloud_roi's HSI red test (sim::RedThreshold::kUpstream)
+  bool textures = false;  // for whoever builds the renderer: sim::Shading::textures (Gazebo's look)
   bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
   double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
   bool charge_compute_time = false; // the planner's and estimators' wall time adds to the clock

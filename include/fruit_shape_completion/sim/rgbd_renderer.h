@@ -1,8 +1,8 @@
 #pragma once
 // A simulated RGB-D camera: Embree ray casting of a scene's triangles through a pinhole
 // camera (640x480, 80 degree horizontal field of view, 0.15-3 m by default), colour from the
-// material with simple shading, per-pixel ground-truth labels, and an optional depth noise
-// model of a structured-light sensor.
+// material (flat, or its texture as Gazebo draws it), per-pixel ground-truth labels, and an
+// optional depth noise model.
 #include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/sim/scene.h>
 
@@ -31,6 +31,17 @@ struct DepthNoise {
   std::uint32_t seed = 1;
 };
 
+// How surfaces are coloured. Flat (the ideal simulation): the material's colour, lit from the
+// camera. Textured (the paper's Gazebo): the mesh's texture at the hit's texture coordinates,
+// the surface cut where the texture's alpha is below one half (leaf outlines), lit by an
+// ambient term and one directional light (Lambert); the defaults are Gazebo's default scene
+// ambient and sun. Materials without a texture keep their flat colour under the same light.
+struct Shading {
+  bool textures = false;
+  Eigen::Vector3d light_direction = Eigen::Vector3d(-0.5, 0.1, -0.9);  // where the light travels
+  double ambient = 0.4, diffuse = 0.8;
+};
+
 struct RgbdFrame {
   PinholeCamera camera;
   int width = 0, height = 0;
@@ -50,7 +61,7 @@ class RgbdRenderer {
   // `triangle_fruit`: per scene triangle, the fruit id (computeFruitTruth) or -1; may be empty.
   // Throws std::invalid_argument for a vertex that is not finite or beyond kMaxCoordinate, a bad
   // index or material (loadScene refuses such files before).
-  RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit);
+  RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit, const Shading& shading = Shading());
   ~RgbdRenderer();
   RgbdRenderer(const RgbdRenderer&) = delete;
   RgbdRenderer& operator=(const RgbdRenderer&) = delete;
@@ -61,11 +72,13 @@ class RgbdRenderer {
 
   // True if no geometry lies within `radius` of p (26 probe rays): a camera may stand there.
   bool isClear(const Eigen::Vector3d& p, double radius) const;
-  // Distance to the first hit along a ray, or infinity (also for a ray that is not finite).
+  // Distance to the first hit along a ray, or infinity (also for a ray that is not finite);
+  // textured, rays pass through the cut-away parts of leaves.
   double castRay(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double max_range) const;
 
+  struct Impl;  // the ray tracer's state (public for its hit filter callback)
+
  private:
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 

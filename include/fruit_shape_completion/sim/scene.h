@@ -7,16 +7,23 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace fruit_shape_completion {
 namespace sim {
 
+struct RgbaImage;
+
 struct SceneMaterial {
   std::string name;
-  std::array<std::uint8_t, 3> rgb{{128, 128, 128}};
+  std::array<std::uint8_t, 3> rgb{{128, 128, 128}};  // flat colour (the ideal simulation's)
   bool fruit = false;
+  // The mesh's diffuse texture, if it names one that could be read; its alpha channel (if any)
+  // cuts the surface, as Gazebo draws leaves.
+  std::shared_ptr<const RgbaImage> texture;
+  std::string texture_file;
 };
 
 struct Workspace {
@@ -56,6 +63,7 @@ struct Scene {
   std::vector<ScenePlant> plants;
   std::vector<SceneMaterial> materials;
   std::vector<Eigen::Vector3f> vertices;        // world frame [m]
+  std::vector<Eigen::Vector2f> uvs;             // per vertex texture coordinates, or empty
   std::vector<Eigen::Vector3i> triangles;
   std::vector<int> triangle_material;           // index into materials
   std::vector<int> triangle_plant;              // index into plants
@@ -63,6 +71,7 @@ struct Scene {
   RobotMount robot;
   Eigen::Vector3d camera_start_position = Eigen::Vector3d(0, 0, 1);
   Eigen::Vector3d camera_start_look_at = Eigen::Vector3d(0, 1, 1);
+  std::vector<std::string> notes;  // what loadScene chose or left out (e.g. a missing texture)
 
   int materialIndex(const std::string& name) const;  // -1 if unknown
 };
