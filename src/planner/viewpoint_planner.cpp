@@ -1,3 +1,4 @@
+#include <fruit_shape_completion/depth_edges.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_mask.h>
 
@@ -270,8 +271,15 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           result.mask_false_positives += mask[px];
         }
       }
+      // The ROI octree gets the colour mask as pointcloud_roi makes it; the estimators the mask
+      // without depth edges.
+      std::vector<std::uint8_t> fruit_mask = mask;
+      if (p.drop_depth_edges) {
+        const std::vector<std::uint8_t> edges = depthEdges(frame.depth, frame.width, frame.height);
+        for (std::size_t px = 0; px < mask.size(); ++px) fruit_mask[px] &= static_cast<std::uint8_t>(!edges[px]);
+      }
       const sim::FrameClouds clouds =
-          p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel, red_test) : sim::cloudsFromFrame(frame, mask);
+          p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel, red_test) : sim::cloudsFromFrame(frame, fruit_mask);
       seen_points += clouds.full.size();
       seen_fruit += clouds.fruit.size();
       const auto compute0 = std::chrono::steady_clock::now();  // the robot's own work starts here

@@ -42,6 +42,8 @@ struct PlannerParams {
   // cloud: the coloured cloud voxel-downsampled to this leaf size [m] (upstream: 0.01), and the
   // red test applied to the voxels' mean colours.
   double input_voxel = 0.0;
+  // Fruit pixels at depth discontinuities (depth_edges.h) leave the full-resolution fruit cloud.
+  bool drop_depth_edges = true;
   // The paper-like profile's parts (paperProfile()); the defaults are the ideal simulation.
   bool paper_depth_noise = false;   // the paper's structured noise and blur (sim::DepthNoise::kPaper)
   bool upstream_red_test = false;   // pointcloud_roi's HSI red test (sim::RedThreshold::kUpstream)
