@@ -99,6 +99,12 @@ int main(int argc, char** argv) {
   pnh.param("live", live, live);
   pnh.param("sensor_frame", sensor_frame, sensor_frame);
   pnh.param("exit_when_done", exit_when_done, exit_when_done);
+  std::string profile = "paper";
+  pnh.param("profile", profile, profile);
+  if (profile != "paper" && profile != "ideal") {
+    ROS_FATAL("~profile must be paper or ideal, not '%s'", profile.c_str());
+    return 1;
+  }
 
   ros_io::ShapeEstimatorLoader loader;
   planner::ShapeEstimatorHost& host = loader.host();
@@ -158,12 +164,15 @@ int main(int argc, char** argv) {
   }
   std::vector<int> triangle_fruit;
   const planner::SceneTruth truth = planner::makeSceneTruth(sim::computeFruitTruth(scene, &triangle_fruit), planner::PlannerParams().octree_resolution);
-  const sim::RgbdRenderer renderer(scene, triangle_fruit);
+  planner::PlannerParams params;
+  if (profile == "paper") params = planner::paperProfile(params);
+  sim::Shading shading;
+  shading.textures = params.textures;
+  const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
   tf2_ros::TransformBroadcaster tf;
   ros::Publisher octree_pub = pnh.advertise<visualization_msgs::MarkerArray>("roi_octree", 1, true);
   ros::Publisher boxes_pub = pnh.advertise<visualization_msgs::MarkerArray>("old_boxes", 1, true);
   ros::Publisher cloud_pub = pnh.advertise<sensor_msgs::PointCloud2>("scene_cloud", 1, true);
-  planner::PlannerParams params;
   params.duration = duration;
   params.seed = static_cast<unsigned>(seed);
   params.shape_targets = shape_targets;
