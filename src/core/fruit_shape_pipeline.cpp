@@ -141,7 +141,7 @@ std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWit
   const int min_part = params_.clustering.min_size;
   // Touching fruits end up in one cluster, which no single superellipsoid fits: split it in
   // two (2-means along its main axis, then one reassignment of points to the fit that explains
-  // them better) and keep the split if every part fits.
+  // them better) and keep the split if some part fits.
   if (whole.accepted || !whole.converged || depth >= params_.max_split_depth ||
       static_cast<int>(points.size()) < 2 * min_part) {
     out.emplace_back(points, whole);
@@ -193,11 +193,14 @@ std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWit
     auto sub = estimateWithSplit(part[k], depth + 1);
     parts.insert(parts.end(), sub.begin(), sub.end());
   }
-  for (const auto& pe : parts)
-    if (!pe.second.accepted) {
-      out.emplace_back(points, whole);
-      return out;
-    }
+  // Keep the split if any part fits: of three merged fruits, the two that fit are found even
+  // when the third, half seen, fits nothing yet (the unfit parts stay unaccepted).
+  int accepted = 0;
+  for (const auto& pe : parts) accepted += pe.second.accepted;
+  if (accepted == 0) {
+    out.emplace_back(points, whole);
+    return out;
+  }
   ++stats_.splits;
   return parts;
 }

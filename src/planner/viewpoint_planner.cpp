@@ -325,6 +325,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       rec.old_se = evaluate(old_fruits, truth.se);
       rec.se_se = evaluate(se_fruits, truth.se);
       rec.old_box = evaluate(old_fruits, truth.box);
+      result.final_fruits = se_fruits;
 
       // Targets and the next view.
       PointList targets = tree.roiContourTargets();
@@ -400,6 +401,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         best_gain = 0.0;
         for (const auto& c : cands) best_gain = std::max(best_gain, c.gain);
       }
+      rec.gain = best_gain;
       const auto done = std::chrono::steady_clock::now();
       rec.wall_ms = std::chrono::duration<double, std::milli>(done - wall0).count();
       rec.compute_ms = std::chrono::duration<double, std::milli>(done - compute0).count();

@@ -213,17 +213,40 @@ int main(int argc, char** argv) {
   // Per-trial CSV: one row per view.
   for (int k = 0; k < trials; ++k) {
     std::ofstream csv(out + "/trial_" + std::to_string(k) + ".csv");
-    csv << "view,time_s,x,y,z,exploration,contour_targets,shape_targets,wall_ms,compute_ms";
+    csv << "view,time_s,x,y,z,exploration,gain,contour_targets,shape_targets,wall_ms,compute_ms";
     for (const char* est : {"old", "se", "old_box"})
       for (const char* s : kSubsets) csv << ',' << est << '_' << s << "_fruits," << est << '_' << s << "_center_cm," << est << '_' << s << "_accuracy";
     csv << '\n';
     for (const auto& v : results[k].views) {
       csv << v.view << ',' << v.time << ',' << v.position.x() << ',' << v.position.y() << ',' << v.position.z() << ','
-          << v.exploration << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
+          << v.exploration << ',' << v.gain << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
       for (const Evaluation* e : {&v.old_true, &v.se_true, &v.old_box})
         for (int s = 0; s < 3; ++s)
           csv << ',' << subset(*e, s).fruits << ',' << subset(*e, s).center_error_cm << ',' << subset(*e, s).accuracy;
       csv << '\n';
+    }
+  }
+
+  // The scene's scored fruits, and per trial the final SE fruits with their nearest one.
+  {
+    std::ofstream t(out + "/truth.csv");
+    t << "truth,x,y,z,volume_cm3\n";
+    for (std::size_t i = 0; i < truth.enclosed.size(); ++i)
+      t << i << ',' << truth.enclosed[i].center.x() << ',' << truth.enclosed[i].center.y() << ','
+        << truth.enclosed[i].center.z() << ',' << truth.enclosed[i].volume * 1e6 << '\n';
+  }
+  for (int k = 0; k < trials; ++k) {
+    std::ofstream f(out + "/trial_" + std::to_string(k) + "_fruits.csv");
+    f << "id,x,y,z,volume_cm3,points,nearest_truth,distance_cm\n";
+    for (const auto& e : results[k].final_fruits) {
+      int nearest = -1;
+      double best = 1e300;
+      for (std::size_t i = 0; i < truth.enclosed.size(); ++i) {
+        const double d = (truth.enclosed[i].center - e.center()).norm();
+        if (d < best) best = d, nearest = static_cast<int>(i);
+      }
+      f << e.id << ',' << e.center().x() << ',' << e.center().y() << ',' << e.center().z() << ',' << e.volume * 1e6
+        << ',' << e.n_points << ',' << nearest << ',' << (nearest >= 0 ? best * 100 : -1) << '\n';
     }
   }
 
@@ -305,7 +328,8 @@ int main(int argc, char** argv) {
                collect(base.duration, &ViewRecord::se_se));
     printTable("Old as the upstream evaluator scores it (box against the fruit's voxel-centre box):",
                collect(base.duration, &ViewRecord::old_box), {});
-    std::printf("\nwritten: %s/results.json, %s/trial_*.csv\n", out.c_str(), out.c_str());
+    std::printf("\nwritten: %s/results.json, %s/trial_*.csv (per view), %s/trial_*_fruits.csv (final SE fruits), %s/truth.csv\n",
+                out.c_str(), out.c_str(), out.c_str(), out.c_str());
   }
   return 0;
 }

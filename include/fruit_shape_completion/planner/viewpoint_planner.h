@@ -73,6 +73,7 @@ struct ViewRecord {
   Evaluation old_box;            // Old against the voxel-centre box (SceneTruth::box)
   int contour_targets = 0, shape_targets = 0;
   bool exploration = false;
+  double gain = 0.0;  // the best candidate's gain (unknown cells its rays see) when this view was planned
   double wall_ms = 0.0;
   double compute_ms = 0.0;  // the planner's and estimators' part of wall_ms (rendering excluded)
 };
@@ -87,6 +88,7 @@ struct EpisodeResult {
   std::uint64_t mask_negatives = 0, mask_false_positives = 0;
   // With the arm: candidate views sampled and those it could reach; why the others failed.
   int sampled_views = 0, reachable_views = 0, unreachable_ik = 0, unreachable_limits = 0, unreachable_collision = 0;
+  std::vector<FruitEstimate> final_fruits;  // the estimator's scored fruits after the last view
   int dropped_views = 0;       // views that threw and were skipped
   std::string dropped_reason;  // the first one's exception
 };
