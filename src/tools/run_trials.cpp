@@ -236,7 +236,7 @@ int main(int argc, char** argv) {
         << truth.enclosed[i].center.z() << ',' << truth.enclosed[i].volume * 1e6 << '\n';
   }
   for (int k = 0; k < trials; ++k) {
-    std::ofstream f(out + "/trial_" + std::to_string(k) + "_fruits.csv");
+    std::ofstream f(out + "/final_fruits_" + std::to_string(k) + ".csv");
     f << "id,x,y,z,volume_cm3,points,nearest_truth,distance_cm\n";
     for (const auto& e : results[k].final_fruits) {
       int nearest = -1;
@@ -328,7 +328,7 @@ int main(int argc, char** argv) {
                collect(base.duration, &ViewRecord::se_se));
     printTable("Old as the upstream evaluator scores it (box against the fruit's voxel-centre box):",
                collect(base.duration, &ViewRecord::old_box), {});
-    std::printf("\nwritten: %s/results.json, %s/trial_*.csv (per view), %s/trial_*_fruits.csv (final SE fruits), %s/truth.csv\n",
+    std::printf("\nwritten: %s/results.json, %s/trial_*.csv (per view), %s/final_fruits_*.csv (SE fruits at the end), %s/truth.csv\n",
                 out.c_str(), out.c_str(), out.c_str(), out.c_str());
   }
   return 0;
