@@ -159,6 +159,7 @@ std::string PlannerParams::problem() const {
     if (!m.empty()) return m;
     if (!(arm_collision_resolution >= 0.002 && arm_collision_resolution <= 0.1))
       return "arm_collision_resolution must be in [0.002, 0.1] m";
+    if (!(arm_map_resolution >= 0.005 && arm_map_resolution <= 0.1)) return "arm_map_resolution must be in [0.005, 0.1] m";
   }
   return {};
 }
@@ -236,7 +237,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
     for (int i = 0; i < 2000 && !placed; ++i) {
       const Eigen::Vector3d c = i == 0 ? pos : pos + (0.02 + 0.3 * i / 2000.0) * Eigen::Vector3d(g(rng), g(rng), g(rng));
       if ((c - look).norm() < 0.05 || !scene.workspace.contains(c)) continue;
-      placed = arm->reach(PinholeCamera::lookingAt(c, look), home, p.arm_motion, &state) == sim::RobotArm::Reach::kReached;
+      placed = arm->reach(PinholeCamera::lookingAt(c, look), home, p.arm_motion, arm->plants(), &state) ==
+               sim::RobotArm::Reach::kReached;
       if (placed) pos = c;
     }
     if (!placed) {
@@ -244,6 +246,9 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       return result;
     }
   }
+
+  sim::DistanceField known;                  // what the planner's map has seen occupied
+  std::vector<Eigen::Vector3d> failed_goals;  // views whose move failed: not planned again
 
   std::size_t seen_points = 0, seen_fruit = 0;
   for (int view = 0;; ++view) {
@@ -299,6 +304,12 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           octree_fruit.push_back(mask[px] ? 1 : 0);
         }
       tree.insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);
+      if (arm) {
+        PointList occupied;
+        for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+          if (tree.isNodeOccupied(*it)) occupied.emplace_back(it.getX(), it.getY(), it.getZ());
+        known = sim::DistanceField::ofPoints(occupied, p.arm_map_resolution, 0.2);
+      }
       Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
       pose.linear() = cam.rotation;
       pose.translation() = cam.position;
@@ -348,8 +359,10 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         const PinholeCamera cc = PinholeCamera::lookingAt(c, target);
         sim::ArmState reached;
         if (arm) {
+          for (const auto& f : failed_goals)
+            if ((f - c).norm() < 0.02) return;
           ++result.sampled_views;
-          switch (arm->reach(cc, state, p.arm_motion, &reached)) {
+          switch (arm->reach(cc, state, p.arm_motion, known, &reached)) {
             case sim::RobotArm::Reach::kReached: ++result.reachable_views; break;
             case sim::RobotArm::Reach::kNoInverse: ++result.unreachable_ik; return;
             case sim::RobotArm::Reach::kJointLimits: ++result.unreachable_limits; return;
@@ -421,11 +434,15 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         sim::ArmState turned;
         if (!arm) {
           look = turn;
-        } else if (arm->reach(PinholeCamera::lookingAt(pos, turn), state, p.arm_motion, &turned) ==
+        } else if (arm->reach(PinholeCamera::lookingAt(pos, turn), state, p.arm_motion, known, &turned) ==
                    sim::RobotArm::Reach::kReached) {
           t += arm->motionTime(state, turned, p.arm_motion);
-          state = turned;
-          look = turn;
+          if (arm->collides(turned, arm->plants())) {
+            ++result.failed_moves;
+          } else {
+            state = turned;
+            look = turn;
+          }
         }
         continue;
       }
@@ -441,6 +458,13 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       }
       if (arm) {
         t += arm->motionTime(state, best->state, p.arm_motion);
+        // The plan was made in the map; the plants decide whether the arm gets there. A failed
+        // move costs its time and leaves the arm where it was.
+        if (arm->collides(best->state, arm->plants())) {
+          ++result.failed_moves;
+          failed_goals.push_back(best->pos);
+          continue;
+        }
         state = best->state;
       } else {
         t += (best->pos - pos).norm() / p.speed;

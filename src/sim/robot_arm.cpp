@@ -26,126 +26,12 @@ const char* toString(RobotArm::Reach r) {
   return "?";
 }
 
-// Euclidean distance transform of the plants' triangles on a grid: distance from each cell's
-// centre to the nearest cell a triangle passes through.
-struct RobotArm::Field {
-  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
-  double resolution = 0.01, margin = 0.0;
-  Eigen::Vector3i size = Eigen::Vector3i::Zero();
-  std::vector<float> distance;
-
-  double at(const Eigen::Vector3d& p) const {
-    if (distance.empty()) return std::numeric_limits<double>::infinity();
-    const Eigen::Vector3d g = (p - origin) / resolution;
-    if (!g.allFinite()) return 0.0;
-    const Eigen::Vector3i c = g.array().floor().cast<int>();
-    if ((c.array() < 0).any() || (c.array() >= size.array()).any()) return margin;  // beyond: further than margin
-    return distance[(static_cast<std::size_t>(c.z()) * size.y() + c.y()) * size.x() + c.x()];
-  }
-
-  // Felzenszwalb and Huttenlocher's lower envelope of parabolas, along one grid line.
-  static void transform1d(std::vector<double>& f, std::vector<double>& d, std::vector<int>& v, std::vector<double>& z) {
-    const int n = static_cast<int>(f.size());
-    int k = 0;
-    v[0] = 0;
-    z[0] = -std::numeric_limits<double>::infinity();
-    z[1] = std::numeric_limits<double>::infinity();
-    auto meet = [&](int q, int p) { return ((f[q] + double(q) * q) - (f[p] + double(p) * p)) / (2.0 * q - 2.0 * p); };
-    for (int q = 1; q < n; ++q) {
-      double s = meet(q, v[k]);
-      while (s <= z[k]) s = meet(q, v[--k]);  // z[0] is -inf: k stays >= 0
-      ++k;
-      v[k] = q;
-      z[k] = s;
-      z[k + 1] = std::numeric_limits<double>::infinity();
-    }
-    k = 0;
-    for (int q = 0; q < n; ++q) {
-      while (z[k + 1] < q) ++k;
-      d[q] = double(q - v[k]) * (q - v[k]) + f[v[k]];
-    }
-  }
-
-  void build(const Scene& scene, double res, double border) {
-    margin = border;
-    if (scene.triangles.empty()) return;
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (const auto& t : scene.triangles)
-      for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector3d p = scene.vertices[static_cast<std::size_t>(t[k])].cast<double>();
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-      }
-    lo.array() -= border;
-    hi.array() += border;
-    // Coarser cells rather than an unbounded grid for a sprawling scene.
-    resolution = std::max(res, std::cbrt((hi - lo).prod() / 6.4e7));
-    origin = lo;
-    size = ((hi - lo) / resolution).array().ceil().cast<int>() + 1;
-    const std::size_t n = static_cast<std::size_t>(size.x()) * size.y() * size.z();
-    constexpr double kFar = 1e20;
-    std::vector<double> sq(n, kFar);
-    auto index = [&](int x, int y, int z) { return (static_cast<std::size_t>(z) * size.y() + y) * size.x() + x; };
-    for (const auto& t : scene.triangles) {
-      const Eigen::Vector3d a = scene.vertices[static_cast<std::size_t>(t[0])].cast<double>();
-      const Eigen::Vector3d b = scene.vertices[static_cast<std::size_t>(t[1])].cast<double>();
-      const Eigen::Vector3d c = scene.vertices[static_cast<std::size_t>(t[2])].cast<double>();
-      const double longest = std::max({(b - a).norm(), (c - a).norm(), (c - b).norm()});
-      const int steps = std::max(1, static_cast<int>(std::ceil(longest / (0.5 * resolution))));
-      for (int i = 0; i <= steps; ++i)
-        for (int j = 0; i + j <= steps; ++j) {
-          const Eigen::Vector3d p = a + (b - a) * (double(i) / steps) + (c - a) * (double(j) / steps);
-          const Eigen::Vector3i g = ((p - origin) / resolution).array().floor().cast<int>();
-          sq[index(g.x(), g.y(), g.z())] = 0.0;
-        }
-    }
-    const int longest_axis = size.maxCoeff();
-    std::vector<double> f(static_cast<std::size_t>(longest_axis)), d(f.size()), z(f.size() + 1);
-    std::vector<int> v(f.size());
-    for (int axis = 0; axis < 3; ++axis) {
-      const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
-      f.resize(static_cast<std::size_t>(size[axis]));
-      d.resize(f.size());
-      for (int i = 0; i < size[a1]; ++i)
-        for (int j = 0; j < size[a2]; ++j) {
-          Eigen::Vector3i c;
-          c[a1] = i;
-          c[a2] = j;
-          for (int k = 0; k < size[axis]; ++k) {
-            c[axis] = k;
-            f[static_cast<std::size_t>(k)] = sq[index(c.x(), c.y(), c.z())];
-          }
-          transform1d(f, d, v, z);
-          for (int k = 0; k < size[axis]; ++k) {
-            c[axis] = k;
-            sq[index(c.x(), c.y(), c.z())] = std::min(d[static_cast<std::size_t>(k)], kFar);
-          }
-        }
-    }
-    distance.resize(n);
-    for (std::size_t i = 0; i < n; ++i) distance[i] = static_cast<float>(std::sqrt(sq[i]) * resolution);
-  }
-
-  // A capsule is taken as touching the plants when some point of its axis is nearer than its
-  // radius, to within a cell.
-  bool hits(const Capsule& c) const {
-    if (distance.empty()) return false;
-    const double len = (c.b - c.a).norm();
-    const int steps = std::max(1, static_cast<int>(std::ceil(len / (0.5 * resolution))));
-    for (int i = 0; i <= steps; ++i)
-      if (at(c.a + (c.b - c.a) * (double(i) / steps)) < c.radius + 0.5 * resolution) return true;
-    return false;
-  }
-};
-
-RobotArm::RobotArm(const Scene& scene, double collision_resolution) : mount_(scene.robot), field_(new Field) {
+RobotArm::RobotArm(const Scene& scene, double collision_resolution) : mount_(scene.robot) {
   if (mount_.kind == RobotMount::Kind::kNone) throw std::invalid_argument("the scene has no arm (robot mount none)");
   if (!(collision_resolution > 0.0 && collision_resolution < 1.0))
     throw std::invalid_argument("collision resolution must be in (0, 1) m");
-  field_->build(scene, collision_resolution, 0.2);
+  plants_ = DistanceField::ofTriangles(scene.vertices, scene.triangles, collision_resolution, 0.2);
 }
-
-RobotArm::~RobotArm() = default;
 
 Eigen::Isometry3d RobotArm::baseToWorld(const Eigen::Vector3d& base) const {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
@@ -160,8 +46,6 @@ Eigen::Isometry3d RobotArm::cameraPose(const ArmState& s) const {
   return t;
 }
 
-double RobotArm::plantDistance(const Eigen::Vector3d& p) const { return field_->at(p); }
-
 std::vector<Capsule> RobotArm::worldCapsules(const ArmState& s) const {
   const Eigen::Isometry3d tb = baseToWorld(s.base);
   std::vector<Capsule> out;
@@ -174,12 +58,12 @@ std::vector<Capsule> RobotArm::worldCapsules(const ArmState& s) const {
   return out;
 }
 
-bool RobotArm::collides(const ArmState& s) const {
+bool RobotArm::collides(const ArmState& s, const DistanceField& obstacles) const {
   const std::vector<Capsule> c = worldCapsules(s);
   const Capsule& pole = c.back();
   for (int l = ur5e::kUpperArm; l < ur5e::kLinkCount; ++l)
-    if (field_->hits(c[l]) || intersects(c[l], pole)) return true;
-  if (field_->hits(pole)) return true;
+    if (obstacles.hits(c[l]) || intersects(c[l], pole)) return true;
+  if (obstacles.hits(pole)) return true;
   // The arm folding onto itself: wrist and camera against the shoulder, camera against the upper arm.
   for (int l : {ur5e::kWrist2, ur5e::kWrist3, ur5e::kCamera})
     if (intersects(c[l], c[ur5e::kShoulder])) return true;
@@ -200,7 +84,7 @@ double RobotArm::motionTime(const ArmState& from, const ArmState& to, const ArmM
 }
 
 RobotArm::Reach RobotArm::reach(const PinholeCamera& camera, const ArmState& from, const ArmMotion& motion,
-                                ArmState* to) const {
+                                const DistanceField& obstacles, ArmState* to) const {
   Eigen::Isometry3d flange = Eigen::Isometry3d::Identity();
   flange.linear() = camera.rotation;
   flange.translation() = camera.position - kCameraOffset * camera.rotation.col(2);
@@ -233,7 +117,7 @@ RobotArm::Reach RobotArm::reach(const PinholeCamera& camera, const ArmState& fro
       if (!ur5e::nearestWithinLimits(sol, from.q, &s.q)) continue;
       any_within_limits = true;
       const double t = motionTime(from, s, motion);
-      if (t >= best || collides(s)) continue;
+      if (t >= best || collides(s, obstacles)) continue;
       best = t;
       *to = s;
       found = true;

@@ -260,7 +260,7 @@ int main(int argc, char** argv) {
     return v;
   };
   std::vector<double> views_per, reachable;
-  long sampled = 0, ik = 0, limits = 0, collision = 0;
+  long sampled = 0, ik = 0, limits = 0, collision = 0, failed_moves = 0;
   for (const auto& r : results) {
     views_per.push_back(r.views.size());
     if (r.sampled_views > 0) reachable.push_back(double(r.reachable_views) / r.sampled_views);
@@ -268,6 +268,7 @@ int main(int argc, char** argv) {
     ik += r.unreachable_ik;
     limits += r.unreachable_limits;
     collision += r.unreachable_collision;
+    failed_moves += r.failed_moves;
   }
   const MeanStd reach = meanStd(reachable);
   std::ofstream js(out + "/results.json");
@@ -281,7 +282,7 @@ int main(int argc, char** argv) {
   if (base.arm)
     body << ", \"reachable_fraction\": {\"mean\": " << jsonNumber(reach.mean) << ", \"std\": " << jsonNumber(reach.std)
          << "}, \"unreachable\": {\"sampled\": " << sampled << ", \"no_inverse\": " << ik << ", \"joint_limits\": " << limits
-         << ", \"collision\": " << collision << "}";
+         << ", \"collision\": " << collision << "}, \"failed_moves_per_trial\": " << jsonNumber(double(failed_moves) / trials);
   for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0)}) {
     body << ", \"" << label << "\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_true))
          << ", \"se\": " << subsetsJson(collect(t, &ViewRecord::se_true))
@@ -317,9 +318,11 @@ int main(int argc, char** argv) {
     if (!messages.empty()) std::printf("note: %s\n", messages.c_str());
     if (base.arm && sampled > 0)
       std::printf("arm: %s; %.1f +- %.1f %% of sampled views reachable (of %ld unreachable: %.0f %% no inverse kinematics, "
-                  "%.0f %% joint limits, %.0f %% collision)\n", scene.robot.describe().c_str(), 100 * reach.mean, 100 * reach.std,
+                  "%.0f %% joint limits, %.0f %% collision with the map); %.1f moves per trial failed on plants the map had not seen\n",
+                  scene.robot.describe().c_str(), 100 * reach.mean, 100 * reach.std,
                   ik + limits + collision, 100.0 * ik / std::max(1L, ik + limits + collision),
-                  100.0 * limits / std::max(1L, ik + limits + collision), 100.0 * collision / std::max(1L, ik + limits + collision));
+                  100.0 * limits / std::max(1L, ik + limits + collision), 100.0 * collision / std::max(1L, ik + limits + collision),
+                  double(failed_moves) / trials);
     std::printf("fruit mask against the labels, per episode: %.2f +- %.2f %% of red-fruit pixels missed, "
                 "%.3f +- %.3f %% of other pixels taken for fruit\n", 100 * fn.mean, 100 * fn.std, 100 * fp.mean, 100 * fp.std);
     printTable("after the full duration, against the enclosed (true) volume:", collect(base.duration, &ViewRecord::old_true),

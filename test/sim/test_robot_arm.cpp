@@ -106,35 +106,46 @@ TEST(RobotArm, ReachesAViewInFrontAndPlacesTheCameraExactly) {
   from.q << 0, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0;
   const PinholeCamera cam = PinholeCamera::lookingAt({0.1, 0.45, 0.8}, {0.1, 0.9, 0.6});
   ArmState to;
-  ASSERT_EQ(arm.reach(cam, from, ArmMotion(), &to), RobotArm::Reach::kReached);
+  ASSERT_EQ(arm.reach(cam, from, ArmMotion(), arm.plants(), &to), RobotArm::Reach::kReached);
   const Eigen::Isometry3d got = arm.cameraPose(to);
   EXPECT_LT((got.translation() - cam.position).norm(), 1e-9);
   EXPECT_LT((got.linear() - cam.rotation).norm(), 1e-9);
   EXPECT_TRUE(ur5e::withinLimits(to.q));
-  EXPECT_FALSE(arm.collides(to));
+  EXPECT_FALSE(arm.collides(to, arm.plants()));
   // 1.2 m from the shoulder: beyond the UR5e's 0.85 m.
   const PinholeCamera far = PinholeCamera::lookingAt({0.0, 1.2, 1.0}, {0.0, 1.6, 0.8});
-  EXPECT_EQ(arm.reach(far, from, ArmMotion(), &to), RobotArm::Reach::kNoInverse);
+  EXPECT_EQ(arm.reach(far, from, ArmMotion(), arm.plants(), &to), RobotArm::Reach::kNoInverse);
   // Under the base, where only the pole is: every solution folds the arm into it or itself.
   const PinholeCamera under = PinholeCamera::lookingAt({0.0, 0.05, 0.45}, {0.0, 0.4, 0.45});
-  EXPECT_NE(arm.reach(under, from, ArmMotion(), &to), RobotArm::Reach::kReached);
+  EXPECT_NE(arm.reach(under, from, ArmMotion(), arm.plants(), &to), RobotArm::Reach::kReached);
 }
 
 TEST(RobotArm, PlantsBlockTheViewsWhoseLinksWouldPassThroughThem) {
   Scene scene = poleScene();
   addWall(scene, 0.5f);
   const RobotArm arm(scene);
-  EXPECT_NEAR(arm.plantDistance({0.3, 0.3, 0.8}), 0.2, 0.011);
-  EXPECT_NEAR(arm.plantDistance({0.3, 0.5, 0.8}), 0.0, 0.011);
+  EXPECT_NEAR(arm.plants().at({0.3, 0.3, 0.8}), 0.2, 0.011);
+  EXPECT_NEAR(arm.plants().at({0.3, 0.5, 0.8}), 0.0, 0.011);
   ArmState from;
   from.base = scene.robot.base;
   from.q << 0, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0;
   ArmState to;
   // In front of the wall: fine. Behind it: the forearm would cross the wall.
-  EXPECT_EQ(arm.reach(PinholeCamera::lookingAt({0.0, 0.3, 0.9}, {0.0, 0.45, 0.8}), from, ArmMotion(), &to),
+  EXPECT_EQ(arm.reach(PinholeCamera::lookingAt({0.0, 0.3, 0.9}, {0.0, 0.45, 0.8}), from, ArmMotion(), arm.plants(), &to),
             RobotArm::Reach::kReached);
-  EXPECT_EQ(arm.reach(PinholeCamera::lookingAt({0.0, 0.62, 0.9}, {0.0, 0.9, 0.8}), from, ArmMotion(), &to),
-            RobotArm::Reach::kCollision);
+  const PinholeCamera behind = PinholeCamera::lookingAt({0.0, 0.62, 0.9}, {0.0, 0.9, 0.8});
+  EXPECT_EQ(arm.reach(behind, from, ArmMotion(), arm.plants(), &to), RobotArm::Reach::kCollision);
+  // A planner that has not seen the wall plans through it; one whose map holds the wall's
+  // points (2 cm cells) does not.
+  EXPECT_EQ(arm.reach(behind, from, ArmMotion(), DistanceField(), &to), RobotArm::Reach::kReached);
+  EXPECT_TRUE(arm.collides(to, arm.plants()));
+  PointList seen;
+  for (double x = -0.6; x <= 0.6; x += 0.01)
+    for (double z = 0.3; z <= 1.5; z += 0.01) seen.emplace_back(x, 0.5, z);
+  const DistanceField map = DistanceField::ofPoints(seen, 0.02, 0.2);
+  EXPECT_NEAR(map.at({0.0, 0.3, 0.9}), 0.2, 0.021);
+  EXPECT_EQ(arm.reach(behind, from, ArmMotion(), map, &to), RobotArm::Reach::kCollision);
+  EXPECT_TRUE(DistanceField::ofPoints({}, 0.02, 0.2).empty());
 }
 
 TEST(RobotArm, MotionTimeIsTrapezoidalAtTheScaledLimits) {
@@ -166,7 +177,7 @@ TEST(RobotArm, GantryMovesTheBaseToReachFarViews) {
   from.q << 0, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0;
   ArmState to;
   const PinholeCamera cam = PinholeCamera::lookingAt({0.8, 0.7, 0.7}, {0.8, 1.2, 0.5});
-  ASSERT_EQ(arm.reach(cam, from, ArmMotion(), &to), RobotArm::Reach::kReached);
+  ASSERT_EQ(arm.reach(cam, from, ArmMotion(), arm.plants(), &to), RobotArm::Reach::kReached);
   EXPECT_LT((arm.cameraPose(to).translation() - cam.position).norm(), 1e-9);
   EXPECT_GT((to.base - from.base).norm(), 1.0);  // the gantry carried it
   EXPECT_LE(to.base.head<2>().maxCoeff(), 1.0 + 1e-12);
@@ -174,7 +185,7 @@ TEST(RobotArm, GantryMovesTheBaseToReachFarViews) {
   // Hanging arm: the base is above the camera.
   EXPECT_GT(to.base.z(), cam.position.z());
   // Far below the lowest base (1.19 m) by more than the arm's reach.
-  EXPECT_EQ(arm.reach(PinholeCamera::lookingAt({0.0, 0.0, 0.1}, {0.0, 0.5, 0.0}), from, ArmMotion(), &to),
+  EXPECT_EQ(arm.reach(PinholeCamera::lookingAt({0.0, 0.0, 0.1}, {0.0, 0.5, 0.0}), from, ArmMotion(), arm.plants(), &to),
             RobotArm::Reach::kNoInverse);
 }
 

@@ -51,11 +51,13 @@ struct PlannerParams {
   bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
   double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
   bool charge_compute_time = false; // the planner's and estimators' wall time adds to the clock
-  // The scene's arm carries the camera: only views with a collision-free inverse kinematics
-  // solution are sampled, travel takes the joint-space motion time.
+  // The scene's arm carries the camera: only views with an inverse kinematics solution free of
+  // what the map has seen occupied are sampled (as MoveIt plans in its octomap), travel takes
+  // the joint-space motion time, and a move whose goal collides with the plants fails.
   bool arm = false;
   sim::ArmMotion arm_motion;
-  double arm_collision_resolution = 0.01;  // [m] cells of the plants' distance field
+  double arm_collision_resolution = 0.01;  // [m] cells of the plants' distance field (the world)
+  double arm_map_resolution = 0.02;        // [m] cells of the map's distance field (the planner's)
   // Empty if usable, else what is wrong (runEpisode refuses to start with it).
   std::string problem() const;
 };
@@ -88,6 +90,7 @@ struct EpisodeResult {
   std::uint64_t mask_negatives = 0, mask_false_positives = 0;
   // With the arm: candidate views sampled and those it could reach; why the others failed.
   int sampled_views = 0, reachable_views = 0, unreachable_ik = 0, unreachable_limits = 0, unreachable_collision = 0;
+  int failed_moves = 0;  // planned moves whose goal hit plants the map had not seen
   std::vector<FruitEstimate> final_fruits;  // the estimator's scored fruits after the last view
   int dropped_views = 0;       // views that threw and were skipped
   std::string dropped_reason;  // the first one's exception

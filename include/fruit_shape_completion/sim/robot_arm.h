@@ -1,13 +1,15 @@
 #pragma once
 // The camera's arm as in the paper's simulation: a UR5e on its mount (scene.robot), a camera
 // 2 cm beyond the flange looking along the tool axis. Decides whether a camera pose can be
-// reached (inverse kinematics within the joint limits, no link capsule inside the plants, the
-// pole or the arm's own shoulder) and how long the arm takes to get there.
+// reached (inverse kinematics within the joint limits, no link capsule inside the obstacles,
+// the pole or the arm's own shoulder) and how long the arm takes to get there. The obstacles
+// are the planner's choice: what its map has seen (as MoveIt plans), or the scene's plants
+// (what the world allows, for checking a motion when it is executed).
 #include <fruit_shape_completion/sim/analytic_depth_camera.h>
+#include <fruit_shape_completion/sim/distance_field.h>
 #include <fruit_shape_completion/sim/scene.h>
 #include <fruit_shape_completion/sim/ur5e_kinematics.h>
 
-#include <memory>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -33,31 +35,27 @@ class RobotArm {
  public:
   static constexpr double kCameraOffset = 0.02;  // [m] lens beyond the flange
 
-  // Builds the plants' distance field (collision_resolution cells). Throws
+  // Builds the distance field of the scene's plants (collision_resolution cells). Throws
   // std::invalid_argument for a scene without an arm (robot.kind == kNone).
   explicit RobotArm(const Scene& scene, double collision_resolution = 0.01);
-  ~RobotArm();
-  RobotArm(const RobotArm&) = delete;
-  RobotArm& operator=(const RobotArm&) = delete;
 
   enum class Reach { kReached, kNoInverse, kJointLimits, kCollision };
-  // The collision-free state with the camera at `camera` (position and orientation) that is
-  // quickest to reach from `from`; on the gantry the base may move too.
-  Reach reach(const PinholeCamera& camera, const ArmState& from, const ArmMotion& motion, ArmState* to) const;
+  // The state free of `obstacles` with the camera at `camera` (position and orientation) that
+  // is quickest to reach from `from`; on the gantry the base may move too.
+  Reach reach(const PinholeCamera& camera, const ArmState& from, const ArmMotion& motion,
+              const DistanceField& obstacles, ArmState* to) const;
   double motionTime(const ArmState& from, const ArmState& to, const ArmMotion& motion) const;
 
   Eigen::Isometry3d baseToWorld(const Eigen::Vector3d& base) const;  // upright or upside down
   Eigen::Isometry3d cameraPose(const ArmState& state) const;        // camera frame (z forward) in the world
   std::vector<Capsule> worldCapsules(const ArmState& state) const;  // ur5e::Link order, then the pole
-  bool collides(const ArmState& state) const;
-  // Lower bound of the distance from p to the plants' triangles [m].
-  double plantDistance(const Eigen::Vector3d& p) const;
+  bool collides(const ArmState& state, const DistanceField& obstacles) const;
+  const DistanceField& plants() const { return plants_; }
   const RobotMount& mount() const { return mount_; }
 
  private:
-  struct Field;
   RobotMount mount_;
-  std::unique_ptr<Field> field_;
+  DistanceField plants_;
 };
 
 const char* toString(RobotArm::Reach r);
