@@ -179,3 +179,33 @@ TEST(FruitShapePipeline, InvalidParametersAreRefused) {
   p.missing.threshold = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
 }
+
+TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) {
+  // Two touching fruits (surfaces 5 mm apart: one Euclidean cluster) and, touching the second,
+  // a scatter of points no shape explains. Both fruits are found and the scatter stays
+  // unaccepted; keeping only all-fitting splits lost all three.
+  Superellipsoid a, b;
+  a.a = a.b = a.c = 0.04;
+  b = a;
+  a.t = Eigen::Vector3d(0, 0, 0.5);
+  b.t = Eigen::Vector3d(0.085, 0, 0.5);
+  PointList cloud = scan(a, 1.0, Eigen::Vector3d(0, -1, 0.2), 1);
+  const PointList pb = scan(b, 1.0, Eigen::Vector3d(0, -1, 0.2), 2);
+  cloud.insert(cloud.end(), pb.begin(), pb.end());
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 600; ++i)
+    cloud.emplace_back(0.128 + 0.04 * u(rng), -0.03 + 0.06 * u(rng), 0.47 + 0.06 * u(rng));
+  FruitShapePipeline pipeline;
+  const auto& fruits = pipeline.update(cloud);
+  int accepted = 0;
+  for (const auto& f : fruits) accepted += f.accepted;
+  EXPECT_EQ(accepted, 2);
+  for (const auto* t : {&a, &b}) {
+    const FruitEstimate* f = nearest(fruits, t->t);
+    ASSERT_TRUE(f->accepted) << f->reason;
+    EXPECT_LT((f->center() - t->t).norm(), 0.006);  // a few scattered points stay with it
+    EXPECT_NEAR(f->volume, t->volume(), 0.1 * t->volume());
+  }
+  EXPECT_GE(pipeline.lastStats().splits, 1);
+}
