@@ -23,7 +23,11 @@ void readParam(const ros::NodeHandle& nh, const std::string& name, T& value, std
   const bool rounded = std::is_same<T, int>::value && nh.getParam(name, raw) && raw.getType() != XmlRpc::XmlRpcValue::TypeInt;
   if (rounded || !nh.getParam(name, v))
     throw std::runtime_error("parameter '" + nh.resolveName(name) + "' has the wrong type (expected " +
-                             (std::is_same<T, int>::value ? "an integer" : std::is_same<T, bool>::value ? "true/false" : "a number") + ")");
+                             (std::is_same<T, int>::value           ? "an integer"
+                              : std::is_same<T, bool>::value        ? "true/false"
+                              : std::is_same<T, std::string>::value ? "a string"
+                                                                    : "a number") +
+                             ")");
   value = v;
 }
 
@@ -43,6 +47,11 @@ void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>
 }
 
 }  // namespace
+
+void readStringParam(const ros::NodeHandle& nh, const std::string& name, std::string* value) {
+  std::vector<std::string> known;
+  readParam(nh, name, *value, &known);
+}
 
 planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
                                                            const std::vector<std::string>& other_keys) {

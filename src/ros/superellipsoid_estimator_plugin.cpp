@@ -28,8 +28,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     estimator_ = std::make_unique<planner::SuperellipsoidEstimator>(
         ros_io::readEstimatorParams(nh, {"superellipsoids_topic", "fruit_cloud_topic"}));
     std::string superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic, fruit_cloud_topic;
-    readString(nh, "superellipsoids_topic", &superellipsoids_topic);
-    readString(nh, "fruit_cloud_topic", &fruit_cloud_topic);
+    ros_io::readStringParam(nh, "superellipsoids_topic", &superellipsoids_topic);
+    ros_io::readStringParam(nh, "fruit_cloud_topic", &fruit_cloud_topic);
     publisher_ = std::make_unique<ros_io::FruitPublisher>(nh, map_frame, superellipsoids_topic);
     clear_ = nh.advertiseService("clear_map", &SuperellipsoidEstimatorPlugin::clearMap, this);
     save_ = nh.advertiseService("save_map", &SuperellipsoidEstimatorPlugin::saveMap, this);
@@ -132,10 +132,6 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     if (res.success) update();
     res.message = res.success ? "loaded " + req.file_path : error;
     return true;
-  }
-  static void readString(const ros::NodeHandle& nh, const std::string& key, std::string* value) {
-    if (nh.hasParam(key) && !nh.getParam(key, *value))
-      throw std::runtime_error("parameter '" + nh.resolveName(key) + "' has the wrong type (expected a string)");
   }
   std::string totals() const {
     const planner::EstimatorStatus s = estimator_->status();

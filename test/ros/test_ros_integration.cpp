@@ -392,6 +392,15 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
     EXPECT_NE(std::string(e.what()).find("alpah"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("cluster_tolerance"), std::string::npos) << e.what();  // valid keys listed
   }
+  bad.deleteParam("shape/alpah");
+  bad.setParam("shape/fruit_cloud_topic", 3);  // a topic must be a string
+  try {
+    loader.load(bad, "world");
+    FAIL() << "a topic of the wrong type must throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("fruit_cloud_topic"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("a string"), std::string::npos) << e.what();
+  }
 }
 
 TEST(FruitPublisher, CloudsRoundTripAndLyingHeadersAreRefused) {

@@ -16,5 +16,8 @@ namespace ros_io {
 planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
                                                            const std::vector<std::string>& other_keys = {});
 
+// A string parameter, if present; present with another type throws std::runtime_error naming it.
+void readStringParam(const ros::NodeHandle& nh, const std::string& name, std::string* value);
+
 }  // namespace ros_io
 }  // namespace fruit_shape_completion
