@@ -305,9 +305,19 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         }
       tree.insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);
       if (arm) {
+        // Occupied cells as points; a merged leaf (8^k equal cells) as a grid over its cube.
         PointList occupied;
-        for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
-          if (tree.isNodeOccupied(*it)) occupied.emplace_back(it.getX(), it.getY(), it.getZ());
+        for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+          if (!tree.isNodeOccupied(*it)) continue;
+          const Eigen::Vector3d c(it.getX(), it.getY(), it.getZ());
+          const double size = it.getSize();
+          const int n = std::max(1, static_cast<int>(std::ceil(size / p.arm_map_resolution)));
+          for (int x = 0; x < n; ++x)
+            for (int y = 0; y < n; ++y)
+              for (int z = 0; z < n; ++z)
+                occupied.push_back(c + size * (Eigen::Vector3d(x, y, z) + Eigen::Vector3d::Constant(0.5)) / n -
+                                   Eigen::Vector3d::Constant(0.5 * size));
+        }
         known = sim::DistanceField::ofPoints(occupied, p.arm_map_resolution, 0.2);
       }
       Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();

@@ -10,6 +10,11 @@ namespace sim {
 namespace {
 
 constexpr double kFar = 1e20;
+// Cell centres stand for the points in them: a capsule axis point and an obstacle point may
+// each lie half a cell diagonal from theirs. Half of that slack is added to the radius, so
+// contacts are taken to within about one cell (closer ones may be missed, nearer than that
+// may be flagged).
+constexpr double kHalfDiagonal = 0.8660254037844386;
 
 // Felzenszwalb and Huttenlocher's lower envelope of parabolas, along one grid line.
 void transform1d(const std::vector<double>& f, std::vector<double>& d, std::vector<int>& v, std::vector<double>& z) {
@@ -136,7 +141,7 @@ bool DistanceField::hits(const Capsule& c) const {
   const double len = (c.b - c.a).norm();
   const int steps = std::max(1, static_cast<int>(std::ceil(len / (0.5 * resolution_))));
   for (int i = 0; i <= steps; ++i)
-    if (at(c.a + (c.b - c.a) * (double(i) / steps)) < c.radius + 0.5 * resolution_) return true;
+    if (at(c.a + (c.b - c.a) * (double(i) / steps)) < c.radius + kHalfDiagonal * resolution_) return true;
   return false;
 }
 

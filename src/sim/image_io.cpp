@@ -73,6 +73,9 @@ bool readTga(const std::string& path, RgbaImage* image, std::string* error) {
   const int bytes = bpp / 8;
   const std::size_t count = static_cast<std::size_t>(width) * height;
   std::size_t at = 18 + static_cast<std::size_t>(id_length);
+  // Before allocating: the file must hold the pixels (a run-length packet covers at most 128).
+  const std::size_t left = file.size() > at ? file.size() - at : 0;
+  if ((!rle && left < count * bytes) || (rle && count > 128 * left)) return fail("TGA pixel data is truncated");
   std::vector<std::uint8_t> raw(count * bytes);
   if (!rle) {
     if (file.size() < at + raw.size()) return fail("TGA pixel data is truncated");

@@ -115,6 +115,8 @@ RgbdRenderer::RgbdRenderer(const Scene& scene, std::vector<int> triangle_fruit, 
   impl_->shading = shading;
   if (!(shading.light_direction.allFinite() && shading.light_direction.norm() > 0.0))
     throw std::invalid_argument("the light direction must be a finite, non-zero vector");
+  if (!(std::isfinite(shading.ambient) && shading.ambient >= 0.0 && std::isfinite(shading.diffuse) && shading.diffuse >= 0.0))
+    throw std::invalid_argument("ambient and diffuse light must be finite and >= 0");
   impl_->triangle_material = scene.triangle_material;
   impl_->textured = shading.textures && scene.uvs.size() == scene.vertices.size() && !scene.vertices.empty();
   if (impl_->textured) {

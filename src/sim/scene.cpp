@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Geometry>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -215,7 +216,11 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
     if (const YAML::Node rb = root["robot"]) {
       const std::string mount = rb["mount"] ? rb["mount"].as<std::string>() : "";
       if (rb["arm"] && rb["arm"].as<std::string>() != "ur5e") throw std::runtime_error("arm must be ur5e");
-      if (rb["pole_radius"]) scene.robot.pole_radius = finiteNumber(rb["pole_radius"], "pole_radius", 1.0);
+      if (rb["pole_radius"]) {
+        scene.robot.pole_radius = finiteNumber(rb["pole_radius"], "pole_radius", 1.0);
+        if (!(scene.robot.pole_radius > 0.0 && scene.robot.pole_radius <= 0.15))
+          throw std::runtime_error("pole_radius must be in (0, 0.15] m");
+      }
       if (mount == "pole") {
         scene.robot.kind = RobotMount::Kind::kPole;
         scene.robot.base = vec3(rb["base"], "base");
@@ -304,8 +309,20 @@ bool loadScene(const std::string& path, Scene* out, std::string* error) {
                               " not found; drawn in its flat colour");
         continue;
       }
+      std::string ext = file.size() >= 4 ? file.substr(file.size() - 4) : "";
+      for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+      if (ext != ".tga") {
+        scene.notes.push_back("texture " + file + " of material " + scene.materials[m].name +
+                              " is not a TGA file (the only format read); drawn in its flat colour");
+        continue;
+      }
       auto image = std::make_shared<RgbaImage>();
-      if (!readTga(file, image.get(), error)) return false;
+      try {
+        if (!readTga(file, image.get(), error)) return false;
+      } catch (const std::bad_alloc&) {
+        *error = file + ": texture too large for the memory available";
+        return false;
+      }
       shared = image;
     }
     scene.materials[m].texture = shared;

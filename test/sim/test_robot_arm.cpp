@@ -192,8 +192,9 @@ TEST(RobotArm, GantryMovesTheBaseToReachFarViews) {
 TEST(RobotArm, SceneFilesSayTheMount) {
   const std::string dir = ::testing::TempDir();
   auto write = [&](const std::string& robot) {
-    std::ofstream(dir + "/fsc_arm.obj") << "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nusemtl leaf\nf 1 2 3\n";
-    std::ofstream(dir + "/fsc_arm.mtl") << "newmtl leaf\n";
+    std::ofstream(dir + "/fsc_arm.obj") << "mtllib fsc_arm.mtl\nv 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nusemtl leaf\nf 1 2 3\n";
+    std::ofstream(dir + "/fsc_arm.mtl") << "newmtl leaf\nmap_Kd fsc_leaf.png\n";
+    std::ofstream(dir + "/fsc_leaf.png") << "\x89PNG not really";
     std::ofstream f(dir + "/fsc_arm.yaml");
     f << "plants:\n  - {mesh: fsc_arm.obj, position: [0, 0.5, 0]}\nmaterials:\n  leaf: {rgb: [40, 100, 30]}\n" << robot;
   };
@@ -205,6 +206,10 @@ TEST(RobotArm, SceneFilesSayTheMount) {
   EXPECT_DOUBLE_EQ(s.robot.top, 2.0);
   EXPECT_DOUBLE_EQ(s.robot.xy_min.x(), -0.5);
   EXPECT_FALSE(s.robot.inferred);
+  // A texture in a format the simulator does not read: a note, and the flat colour.
+  ASSERT_EQ(s.notes.size(), 1u);
+  EXPECT_NE(s.notes[0].find("not a TGA"), std::string::npos) << s.notes[0];
+  EXPECT_FALSE(s.materials[0].texture);
   write("robot: {arm: ur5e, mount: pole, base: [0.1, 0, 0.7]}\n");
   ASSERT_TRUE(loadScene(dir + "/fsc_arm.yaml", &s, &err)) << err;
   EXPECT_EQ(s.robot.kind, RobotMount::Kind::kPole);
@@ -215,7 +220,8 @@ TEST(RobotArm, SceneFilesSayTheMount) {
   EXPECT_TRUE(s.robot.inferred);
   EXPECT_NE(s.robot.describe().find("inferred"), std::string::npos);
   for (const char* bad : {"robot: {mount: crane}\n", "robot: {mount: gantry, xy_min: [0, 0], xy_max: [-1, 1], top: 2, max_drop: 0.1}\n",
-                          "robot: {mount: pole, base: [0, .nan, 1]}\n", "robot: {arm: ur10, mount: pole, base: [0, 0, 1]}\n"}) {
+                          "robot: {mount: pole, base: [0, .nan, 1]}\n", "robot: {arm: ur10, mount: pole, base: [0, 0, 1]}\n",
+                          "robot: {mount: pole, base: [0, 0, 1], pole_radius: -0.05}\n"}) {
     write(bad);
     err.clear();
     EXPECT_FALSE(loadScene(dir + "/fsc_arm.yaml", &s, &err)) << bad;

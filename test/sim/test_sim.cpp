@@ -368,6 +368,12 @@ TEST(ImageIo, TgaRunLengthAndPlainBothRowOrders) {
   std::vector<unsigned char> huge = plain;
   huge[12] = huge[13] = 0xff;
   broken(huge, "1-16384");
+  std::vector<unsigned char> claims = plain;  // 16000 x 16000 in a 24-byte file: refused before allocating
+  claims[12] = claims[14] = 0x80;
+  claims[13] = claims[15] = 0x3e;
+  broken(claims, "truncated");
+  claims[2] = 10;  // run-length: 256 M pixels cannot come from 6 bytes of packets
+  broken(claims, "truncated");
   broken({1, 2, 3}, "header");
   EXPECT_FALSE(readTga(dir + "/missing.tga", &img, &err));
 }

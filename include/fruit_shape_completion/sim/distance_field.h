@@ -23,7 +23,8 @@ class DistanceField {
 
   // Distance from p to the nearest occupied cell's centre [m]; `margin` beyond the grid.
   double at(const Eigen::Vector3d& p) const;
-  // Some point of the capsule's axis nearer an obstacle than its radius (to within a cell).
+  // Some point of the capsule's axis nearer an obstacle than its radius, to within about one
+  // cell (cell centres stand for the points in them).
   bool hits(const Capsule& c) const;
   double resolution() const { return resolution_; }
   bool empty() const { return distance_.empty(); }
