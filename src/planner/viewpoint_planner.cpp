@@ -249,6 +249,17 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
 
   sim::DistanceField known;                  // what the planner's map has seen occupied
   std::vector<Eigen::Vector3d> failed_goals;  // views whose move failed: not planned again
+  // Executes a move planned in the map: the plants decide whether the arm gets there. A failed
+  // move costs its time and leaves the arm where it was.
+  auto moveArm = [&](const sim::ArmState& goal) {
+    t += arm->motionTime(state, goal, p.arm_motion);
+    if (arm->collides(goal, arm->plants())) {
+      ++result.failed_moves;
+      return false;
+    }
+    state = goal;
+    return true;
+  };
 
   std::size_t seen_points = 0, seen_fruit = 0;
   for (int view = 0;; ++view) {
@@ -445,14 +456,9 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         if (!arm) {
           look = turn;
         } else if (arm->reach(PinholeCamera::lookingAt(pos, turn), state, p.arm_motion, known, &turned) ==
-                   sim::RobotArm::Reach::kReached) {
-          t += arm->motionTime(state, turned, p.arm_motion);
-          if (arm->collides(turned, arm->plants())) {
-            ++result.failed_moves;
-          } else {
-            state = turned;
-            look = turn;
-          }
+                       sim::RobotArm::Reach::kReached &&
+                   moveArm(turned)) {
+          look = turn;
         }
         continue;
       }
@@ -467,15 +473,10 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         }
       }
       if (arm) {
-        t += arm->motionTime(state, best->state, p.arm_motion);
-        // The plan was made in the map; the plants decide whether the arm gets there. A failed
-        // move costs its time and leaves the arm where it was.
-        if (arm->collides(best->state, arm->plants())) {
-          ++result.failed_moves;
+        if (!moveArm(best->state)) {
           failed_goals.push_back(best->pos);
           continue;
         }
-        state = best->state;
       } else {
         t += (best->pos - pos).norm() / p.speed;
       }

@@ -16,16 +16,6 @@ std::string ArmMotion::problem() const {
   return {};
 }
 
-const char* toString(RobotArm::Reach r) {
-  switch (r) {
-    case RobotArm::Reach::kReached: return "reached";
-    case RobotArm::Reach::kNoInverse: return "no inverse kinematics";
-    case RobotArm::Reach::kJointLimits: return "beyond the joint limits";
-    case RobotArm::Reach::kCollision: return "collision";
-  }
-  return "?";
-}
-
 RobotArm::RobotArm(const Scene& scene, double collision_resolution) : mount_(scene.robot) {
   if (mount_.kind == RobotMount::Kind::kNone) throw std::invalid_argument("the scene has no arm (robot mount none)");
   if (!(collision_resolution > 0.0 && collision_resolution < 1.0))

@@ -58,7 +58,5 @@ class RobotArm {
   DistanceField plants_;
 };
 
-const char* toString(RobotArm::Reach r);
-
 }  // namespace sim
 }  // namespace fruit_shape_completion
