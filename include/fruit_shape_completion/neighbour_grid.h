@@ -66,6 +66,20 @@ class NeighbourGrid {
 
   // True if a point of the grid lies within `radius` (<= the cell size) of q.
   bool anyWithin(const Point& q, double radius) const;
+  // visit(j, squared distance, point j) for each point j within `radius` (<= the cell size) of q.
+  template <typename Visit>
+  void forEachWithin(const Point& q, double radius, Visit&& visit) const {
+    if (!q.allFinite()) return;
+    const double r2 = radius * radius;
+    Ranges ranges;
+    const int n = neighbourRanges(cellOf(q, inv_cell_), &ranges);
+    for (int r = 0; r < n; ++r)
+      for (int m = ranges[r].first; m < ranges[r].second; ++m) {
+        const Point& p = sorted_[static_cast<std::size_t>(m)];
+        const double d2 = (p - q).squaredNorm();
+        if (d2 <= r2) visit(order_[static_cast<std::size_t>(m)], d2, p);
+      }
+  }
 
  private:
   using Ranges = std::array<std::pair<int, int>, 27>;

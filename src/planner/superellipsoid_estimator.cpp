@@ -6,11 +6,57 @@ namespace fruit_shape_completion {
 namespace planner {
 
 SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)
-    : params_(params), pipeline_(params.pipeline), map_(params.map), integrator_(params.integrator) {}
+    : params_(params), input_stage_(params.input), pipeline_(params.pipeline), map_(params.map),
+      integrator_(params.integrator) {}
+
+namespace {
+
+FruitInput runInputStage(const FruitInputStage& stage, const ViewData& view) {
+  switch (view.source) {
+    case ViewSource::kCameraFrame:
+      if (!view.camera_frame) {
+        FruitInput refused;
+        refused.error = "a camera-frame view without a frame";
+        return refused;
+      }
+      return stage.processFrame(*view.camera_frame, view.sensor_pose, view.fruit_mask);
+    case ViewSource::kRoiCloud:
+      return stage.processRoiCloud(view.full_cloud, view.fruit_cloud, view.sensor_pose.translation());
+    case ViewSource::kFruitCloud:
+      return stage.processFruitCloud(view.fruit_cloud);
+    case ViewSource::kFruitPoints:
+      break;
+  }
+  FruitInput as_is;
+  as_is.fruit = view.fruit_cloud;
+  as_is.points = view.fruit_cloud.size();
+  return as_is;
+}
+
+}  // namespace
 
 void SuperellipsoidEstimator::insertView(const ViewData& view) {
+  // The stage reads only the view and its own constant parameters: no lock while it runs.
+  FruitInput input = runInputStage(input_stage_, view);
   std::lock_guard<std::mutex> lock(map_mutex_);
-  last_ = integrator_.integrate(map_, view.fruit_cloud, view.sensor_pose);
+  if (input.ok()) {
+    last_ = integrator_.integrate(map_, input.fruit, view.sensor_pose);
+  } else {
+    last_ = IntegrationReport();
+    last_.error = input.error;
+  }
+  input.fruit.clear();
+  input.full.clear();
+  input.mask.clear();
+  totals_.camera_frames += view.source == ViewSource::kCameraFrame ? 1 : 0;
+  totals_.roi_views += view.source == ViewSource::kRoiCloud ? 1 : 0;
+  totals_.fruit_clouds += view.source == ViewSource::kFruitCloud ? 1 : 0;
+  totals_.masked_points += input.masked;
+  totals_.depth_edge_points += input.depth_edges;
+  totals_.veil_points += input.veil;
+  totals_.outlier_points += input.outliers;
+  totals_.points_skipped += input.non_finite;
+  last_input_ = std::move(input);
   dirty_ = dirty_ || last_.rays > 0;
   ++totals_.views;
   totals_.views_refused += last_.ok() ? 0 : 1;
@@ -79,6 +125,7 @@ void SuperellipsoidEstimator::reset() {
   pipeline_.reset();
   totals_ = EstimatorStatus();
   last_ = IntegrationReport();
+  last_input_ = FruitInput();
   dirty_ = false;
   estimates_.clear();
   surface_.clear();
@@ -114,6 +161,11 @@ std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
 PointList SuperellipsoidEstimator::surface() const {
   std::lock_guard<std::mutex> lock(results_mutex_);
   return surface_;
+}
+
+FruitInput SuperellipsoidEstimator::lastInput() const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  return last_input_;
 }
 
 IntegrationReport SuperellipsoidEstimator::lastIntegration() const {

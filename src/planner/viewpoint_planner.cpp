@@ -1,11 +1,8 @@
-#include <fruit_shape_completion/depth_edges.h>
+#include <fruit_shape_completion/planner/pointcloud_roi.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_mask.h>
 
 #include <octomap/octomap_types.h>
-#include <pcl/filters/voxel_grid.h>
-#include <pcl/point_cloud.h>
-#include <pcl/point_types.h>
 
 #include <algorithm>
 #include <chrono>
@@ -20,41 +17,6 @@ namespace fruit_shape_completion {
 namespace planner {
 
 namespace {
-
-// What pointcloud_roi publishes from a frame: the coloured cloud voxel-downsampled (PCL's
-// VoxelGrid: the centroid and mean colour of each leaf), and as fruit the leaves whose mean
-// colour passes the red test; mixed fruit/leaf voxels are judged by their mixed colour.
-sim::FrameClouds downsampledClouds(const sim::RgbdFrame& frame, double leaf, const sim::RedThreshold& red_test) {
-  std::vector<std::size_t> pixels;
-  const sim::FrameClouds all = sim::cloudsFromFrame(frame, {}, &pixels);
-  pcl::PointCloud<pcl::PointXYZRGB>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZRGB>);
-  cloud->reserve(all.full.size());
-  for (std::size_t i = 0; i < all.full.size(); ++i) {
-    const Eigen::Vector3d& p = all.full[i];
-    const std::size_t px = pixels[i];
-    pcl::PointXYZRGB q;
-    q.x = static_cast<float>(p.x()), q.y = static_cast<float>(p.y()), q.z = static_cast<float>(p.z());
-    q.r = frame.rgb[3 * px], q.g = frame.rgb[3 * px + 1], q.b = frame.rgb[3 * px + 2];
-    cloud->push_back(q);
-  }
-  pcl::PointCloud<pcl::PointXYZRGB> down;
-  pcl::VoxelGrid<pcl::PointXYZRGB> grid;
-  grid.setInputCloud(cloud);
-  const float l = static_cast<float>(leaf);
-  grid.setLeafSize(l, l, l);
-  grid.filter(down);
-  std::vector<std::uint8_t> rgb;
-  rgb.reserve(3 * down.size());
-  for (const auto& q : down) rgb.insert(rgb.end(), {q.r, q.g, q.b});
-  const std::vector<std::uint8_t> red = sim::redMask(rgb, static_cast<int>(down.size()), 1, red_test);
-  sim::FrameClouds out;
-  for (std::size_t i = 0; i < down.size(); ++i) {
-    const Eigen::Vector3d p(down[i].x, down[i].y, down[i].z);
-    out.full.push_back(p);
-    if (red[i]) out.fruit.push_back(p);
-  }
-  return out;
-}
 
 using KeySet = std::unordered_set<std::uint64_t>;
 
@@ -100,6 +62,24 @@ double viewGain(const RoiOcTree& tree, const PinholeCamera& cam, const PlannerPa
 
 }  // namespace
 
+const char* toString(PlannerParams::Input input) {
+  switch (input) {
+    case PlannerParams::Input::kCamera: return "camera";
+    case PlannerParams::Input::kRoi: return "roi";
+    case PlannerParams::Input::kFruitCloud: return "fruit-cloud";
+  }
+  return "?";
+}
+
+bool parseInput(const std::string& name, PlannerParams::Input* input) {
+  for (auto i : {PlannerParams::Input::kCamera, PlannerParams::Input::kRoi, PlannerParams::Input::kFruitCloud})
+    if (name == toString(i)) {
+      *input = i;
+      return true;
+    }
+  return false;
+}
+
 SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution) {
   SceneTruth truth;
   truth.box_resolution = resolution;
@@ -141,7 +121,7 @@ std::string PlannerParams::problem() const {
   if (!(std::isfinite(duration) && duration >= 0.0)) return "duration must be >= 0";
   if (!finite_pos(view_cost)) return "view_cost must be > 0";
   if (!finite_pos(speed)) return "speed must be > 0";
-  if (!(input_voxel >= 0.0 && input_voxel < 1.0)) return "input_voxel must be in [0, 1) m";
+  if (!(roi_leaf >= 0.001 && roi_leaf <= 0.1)) return "roi_leaf must be in [0.001, 0.1] m";
   if (!finite_pos(min_view_distance) || !(max_view_distance >= min_view_distance) || !std::isfinite(max_view_distance))
     return "view distances must satisfy 0 < min_view_distance <= max_view_distance";
   if (candidates < 1) return "candidates must be >= 1";
@@ -287,20 +267,41 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           result.mask_false_positives += mask[px];
         }
       }
-      // The ROI octree gets the colour mask as pointcloud_roi makes it; the estimators the mask
-      // without depth edges.
-      std::vector<std::uint8_t> fruit_mask = mask;
-      if (p.drop_depth_edges) {
-        const std::vector<std::uint8_t> edges = depthEdges(frame.depth, frame.width, frame.height);
-        for (std::size_t px = 0; px < mask.size(); ++px) fruit_mask[px] &= static_cast<std::uint8_t>(!edges[px]);
+      // The estimators get what the chosen input delivers to the plugin on a robot; the product's
+      // fruit input stage (in the estimator) does the rest. The ideal profile's HSV test stands in
+      // for an external detector's mask.
+      const Eigen::Isometry3d pose = sim::cameraPose(cam);
+      OrganizedFrame organized;
+      PointList fruit_points, all_points;
+      ViewSource source = ViewSource::kCameraFrame;
+      switch (p.input) {
+        case PlannerParams::Input::kCamera:
+          organized = sim::organizedFrame(frame);
+          break;
+        case PlannerParams::Input::kRoi: {
+          RoiCloud roi = pointcloudRoi(frame, p.roi_leaf, red_test);
+          for (const auto i : roi.roi_indices) fruit_points.push_back(roi.points[static_cast<std::size_t>(i)]);
+          all_points = std::move(roi.points);
+          source = ViewSource::kRoiCloud;
+          break;
+        }
+        case PlannerParams::Input::kFruitCloud:
+          fruit_points = sim::cloudsFromFrame(frame, mask).fruit;
+          source = ViewSource::kFruitCloud;
+          break;
       }
-      const sim::FrameClouds clouds =
-          p.input_voxel > 0 ? downsampledClouds(frame, p.input_voxel, red_test) : sim::cloudsFromFrame(frame, fruit_mask);
-      seen_points += clouds.full.size();
-      seen_fruit += clouds.fruit.size();
+      ViewData given{fruit_points, all_points, pose, t, source};
+      if (source == ViewSource::kCameraFrame) {
+        given.camera_frame = &organized;
+        if (!p.upstream_red_test) given.fruit_mask = &mask;
+      }
+      for (std::size_t px = 0; px < mask.size(); ++px) {
+        seen_points += std::isfinite(frame.depth[px]) ? 1 : 0;
+        seen_fruit += mask[px];
+      }
       const auto compute0 = std::chrono::steady_clock::now();  // the robot's own work starts here
 
-      // The octree gets a pixel subsample (its 1 cm cells need no more); the estimators get all.
+      // The octree gets a pixel subsample with the colour mask (its 1 cm cells need no more).
       PointList octree_points;
       std::vector<char> octree_fruit;
       const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
@@ -331,13 +332,10 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         }
         known = sim::DistanceField::ofPoints(occupied, p.arm_map_resolution, 0.2);
       }
-      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-      pose.linear() = cam.rotation;
-      pose.translation() = cam.position;
       if (p.estimator_period <= 0.0) {
-        host.onView(ViewData{clouds.fruit, clouds.full, pose, t});
+        host.onView(given);
       } else {
-        host.insertView(ViewData{clouds.fruit, clouds.full, pose, t});
+        host.insertView(given);
         if (t - last_update >= p.estimator_period) {
           host.update();
           last_update = t;
@@ -441,7 +439,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       rec.compute_ms = std::chrono::duration<double, std::milli>(done - compute0).count();
       if (p.charge_compute_time) t += rec.compute_ms / 1000.0;
       result.views.push_back(rec);
-      if (on_view && !on_view(rec, tree, cam, clouds)) {
+      if (on_view && !on_view(rec, tree, frame, given)) {
         if (result.message.empty()) result.message = "stopped by the caller";
         break;
       }

@@ -53,11 +53,35 @@ void readStringParam(const ros::NodeHandle& nh, const std::string& name, std::st
   readParam(nh, name, *value, &known);
 }
 
+void readNumberParam(const ros::NodeHandle& nh, const std::string& name, double* value) {
+  std::vector<std::string> known;
+  readParam(nh, name, *value, &known);
+}
+
+void readIntParam(const ros::NodeHandle& nh, const std::string& name, int* value) {
+  std::vector<std::string> known;
+  readParam(nh, name, *value, &known);
+}
+
 planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
                                                            const std::vector<std::string>& other_keys) {
   planner::SuperellipsoidEstimatorParams p;
   std::vector<std::string> known = other_keys;
   auto read = [&](const std::string& name, auto& value) { readParam(nh, name, value, &known); };
+  read("red_min_hue", p.input.red_test.min_hue);
+  read("red_max_hue", p.input.red_test.max_hue);
+  read("red_min_saturation", p.input.red_test.min_saturation);
+  read("red_min_intensity", p.input.red_test.min_intensity);
+  read("drop_depth_edges", p.input.drop_depth_edges);
+  read("depth_edge_absolute", p.input.depth_edges.absolute);
+  read("depth_edge_relative", p.input.depth_edges.relative);
+  read("input_remove_outliers", p.input.remove_outliers);
+  read("input_outlier_k", p.input.outliers.k);
+  read("input_outlier_std_mul", p.input.outliers.std_mul);
+  read("input_outlier_radius", p.input.outliers.search_radius);
+  read("drop_veil_points", p.input.drop_veil_points);
+  read("veil_radius", p.input.veil_radius);
+  read("veil_angle_deg", p.input.veil_angle_deg);
   read("voxel_size", p.map.voxel_size);
   read("voxels_per_side", p.map.voxels_per_side);
   read("memory_budget_mb", p.map.memory_budget_mb);
@@ -87,6 +111,7 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   read("publish_targets", p.publish_targets);
   rejectUnknownKeys(nh, known);
   try {
+    p.input.validate();
     p.map.validate();
     p.integrator.validate();
     p.pipeline.validate();

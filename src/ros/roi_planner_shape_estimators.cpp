@@ -45,7 +45,7 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
       ROS_WARN_THROTTLE(10.0, "shape estimators: %zu ROI indices out of range or on NaN points skipped (%zu so far)",
                         view.bad_indices, std::size_t(indices_skipped_));
     }
-    loader_.host().onView({view.fruit, view.all, view.sensor_pose, time});
+    loader_.host().onView({view.fruit, view.all, view.sensor_pose, time, planner::ViewSource::kRoiCloud});
   } catch (const std::exception& e) {  // std::bad_alloc among them: drop this view, keep the planner running
     ++views_skipped_;
     ROS_ERROR("shape estimators: view dropped (%zu so far): %s", std::size_t(views_skipped_), e.what());

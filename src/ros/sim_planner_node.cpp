@@ -145,7 +145,8 @@ int main(int argc, char** argv) {
         const Eigen::Isometry3d T = tf2::transformToEigen(to_map);
         for (auto& p : pts) p = T * p;
         std::lock_guard<std::mutex> lock(mutex);
-        host.onView(planner::ViewData{pts, none, tf2::transformToEigen(sensor), msg->header.stamp.toSec()});
+        host.onView(planner::ViewData{pts, none, tf2::transformToEigen(sensor), msg->header.stamp.toSec(),
+                                      planner::ViewSource::kFruitCloud});
       } catch (const std::exception& e) {  // std::bad_alloc included: drop this cloud, keep running
         ROS_WARN_THROTTLE(5.0, "fruit_cloud dropped (%zu so far): %s", ++dropped, e.what());
       }
@@ -179,7 +180,8 @@ int main(int argc, char** argv) {
   params.render_threads = 2;
   ROS_INFO("planning on %s (%zu red ground-truth fruits scored) for %.0f s", scene.name.c_str(), truth.enclosed.size(), duration);
   const auto result = planner::runEpisode(scene, renderer, truth, host, params,
-      [&](const planner::ViewRecord& v, const planner::RoiOcTree& tree, const PinholeCamera& cam, const sim::FrameClouds& clouds) {
+      [&](const planner::ViewRecord& v, const planner::RoiOcTree& tree, const sim::RgbdFrame& frame, const planner::ViewData&) {
+        const PinholeCamera& cam = frame.camera;
         geometry_msgs::TransformStamped t;
         t.header.stamp = ros::Time::now();
         t.header.frame_id = map_frame;
@@ -195,7 +197,7 @@ int main(int argc, char** argv) {
         tf.sendTransform(t);
         octree_pub.publish(octreeMarkers(tree, map_frame));
         boxes_pub.publish(boxMarkers(tree.roiClusters(10), map_frame));
-        cloud_pub.publish(ros_io::toCloud(clouds.full, map_frame, ros::Time::now()));
+        cloud_pub.publish(ros_io::toCloud(sim::cloudsFromFrame(frame, {}).full, map_frame, ros::Time::now()));
         ROS_INFO("view %d at %.0f s: Old MA50 %d fruits, SE MA50 %d fruits (accuracy %.3f, centre %.2f cm)", v.view,
                  v.time, v.old_true.ma50.fruits, v.se_true.ma50.fruits, v.se_true.ma50.accuracy,
                  v.se_true.ma50.center_error_cm);

@@ -1,3 +1,4 @@
+#include <fruit_shape_completion/hsi_red_test.h>
 #include <fruit_shape_completion/sim/fruit_mask.h>
 
 #include <algorithm>
@@ -24,18 +25,8 @@ void toHsv(double r, double g, double b, double* h, double* s, double* v) {
 }
 }  // namespace
 
-// PCL's packed HSI (the definitions of en.wikipedia.org/wiki/HSL_and_HSI, integer scaled).
-static bool upstreamIsRed(int r, int g, int b) {
-  const double hx = (2.0 * r - g - b) / 4.0, hy = (g - b) * 111.0 / 255.0;
-  const int hue = static_cast<int>(std::max(-128.0, std::min(127.0, std::atan2(hy, hx) * 128.0 / M_PI)));
-  const int intensity = (r + g + b) / 3;
-  const int lowest = std::min(r, std::min(g, b));
-  const int saturation = intensity == 0 ? 0 : 255 - lowest * 255 / intensity;
-  return !(hue < -20 || hue > 35 || saturation < 30 || intensity < 30);
-}
-
 bool RedThreshold::isRed(std::uint8_t r, std::uint8_t g, std::uint8_t b) const {
-  if (test == Test::kUpstream) return upstreamIsRed(r, g, b);
+  if (test == Test::kUpstream) return HsiRedTest().isRed(r, g, b);
   if (r <= g || r <= b) return false;  // red is the largest channel of every red hue
   double h, s, v;
   toHsv(r / 255.0, g / 255.0, b / 255.0, &h, &s, &v);

@@ -325,5 +325,34 @@ FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8
   return clouds;
 }
 
+OrganizedFrame organizedFrame(const RgbdFrame& frame) {
+  OrganizedFrame out;
+  out.width = frame.width;
+  out.height = frame.height;
+  out.rgb = frame.rgb;
+  out.xyz.assign(3 * out.pixels(), std::numeric_limits<float>::quiet_NaN());
+  const PinholeCamera& cam = frame.camera;
+  // depth_image_proc: x = (u - cx) z / fx with the principal point at the image centre, between
+  // the two middle pixels (cloudsFromFrame's pixel centres).
+  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  for (int v = 0; v < frame.height; ++v)
+    for (int u = 0; u < frame.width; ++u) {
+      const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
+      const double z = frame.depth[px];
+      if (!std::isfinite(z)) continue;
+      out.xyz[3 * px] = static_cast<float>((u + 0.5 - 0.5 * cam.width) / f * z);
+      out.xyz[3 * px + 1] = static_cast<float>((v + 0.5 - 0.5 * cam.height) / f * z);
+      out.xyz[3 * px + 2] = static_cast<float>(z);
+    }
+  return out;
+}
+
+Eigen::Isometry3d cameraPose(const PinholeCamera& camera) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = camera.rotation;
+  pose.translation() = camera.position;
+  return pose;
+}
+
 }  // namespace sim
 }  // namespace fruit_shape_completion

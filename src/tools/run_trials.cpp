@@ -2,7 +2,8 @@
 // (superellipsoids) evaluated side by side after every view, as in the paper's tables.
 //   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
 //              [--profile paper|ideal] [--red-test hsv|upstream] [--flat-colours] [--no-shape-targets] [--no-noise]
-//              [--input-voxel M] [--velocity-scaling S] [--plan-overhead S] --out DIR [--json] [--jobs J]
+//              [--input camera|roi|fruit-cloud] [--no-depth-edges] [--input-outliers K,STD,R] [--no-veil]
+//              [--velocity-scaling S] [--plan-overhead S] [--out DIR] [--json] [--jobs J]
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
@@ -18,6 +19,7 @@
 #include <fstream>
 #include <iostream>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 
 #include "fruit_report.h"
@@ -104,6 +106,8 @@ int main(int argc, char** argv) {
   std::string profile = "paper", red_test;  // red_test empty: the profile's
   PlannerParams base;
   double velocity_scaling = -1, plan_overhead = -1;  // < 0: the profile's
+  std::string input_name = "camera";
+  SuperellipsoidEstimatorParams estimator;
   bool flat_colours = false;
   for (int i = 1; i < argc; ++i) {
     auto need = [&](const char* flag) { return !std::strcmp(argv[i], flag) && i + 1 < argc; };
@@ -113,7 +117,17 @@ int main(int argc, char** argv) {
     else if (need("--seed")) base.seed = std::strtoul(argv[++i], nullptr, 10);
     else if (need("--out")) out = argv[++i];
     else if (need("--jobs")) jobs = std::atoi(argv[++i]);
-    else if (need("--input-voxel")) base.input_voxel = std::atof(argv[++i]);
+    else if (need("--input")) input_name = argv[++i];
+    else if (!std::strcmp(argv[i], "--no-depth-edges")) estimator.input.drop_depth_edges = false;
+    else if (need("--input-outliers")) {  // K,STD_MUL,RADIUS
+      auto& o = estimator.input.outliers;
+      estimator.input.remove_outliers = true;
+      if (std::sscanf(argv[++i], "%d,%lf,%lf", &o.k, &o.std_mul, &o.search_radius) != 3) {
+        std::cerr << "run_trials: --input-outliers takes K,STD_MUL,RADIUS (e.g. 5,1.0,0.005)\n";
+        return 2;
+      }
+    }
+    else if (!std::strcmp(argv[i], "--no-veil")) estimator.input.drop_veil_points = false;
     else if (need("--profile")) profile = argv[++i];
     else if (need("--red-test")) red_test = argv[++i];
     else if (need("--velocity-scaling")) velocity_scaling = std::atof(argv[++i]);
@@ -124,8 +138,8 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--json")) json = true;
     else {
       std::cerr << "usage: run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K] "
-                   "[--profile paper|ideal] [--red-test hsv|upstream] [--flat-colours] [--no-shape-targets] [--no-noise] [--input-voxel M] --out DIR\n"
-                   "[--json] [--jobs J]\n"
+                   "[--profile paper|ideal] [--red-test hsv|upstream] [--flat-colours] [--no-shape-targets] [--no-noise]\n"
+                   "[--input camera|roi|fruit-cloud] [--no-depth-edges] [--input-outliers K,STD,R] [--no-veil] [--out DIR] [--json] [--jobs J]\n"
                    "  --profile paper  (default) the paper's depth noise and blur, estimator every 3 s, compute time on the\n"
                    "                   clock, no ground truth in planning, the scene's UR5e carries the camera, textured\n"
                    "                   and lit plants, pointcloud_roi's HSI red test\n"
@@ -134,12 +148,21 @@ int main(int argc, char** argv) {
                    "  --flat-colours   the scene files' flat material colours instead of the textures\n"
                    "  --velocity-scaling S  the arm's share of its rated joint speed and acceleration (paper profile: 0.5)\n"
                    "  --plan-overhead S     seconds per plan besides motion and compute (ideal: 2, paper: 1.5)\n"
-                   "  --input-voxel M  feed the estimators pointcloud_roi's output: the cloud downsampled to M (0.01)\n";
+                   "  --input camera       (default) the camera's organized cloud through the plugin's whole input stage\n"
+                   "  --input roi          pointcloud_roi's 1 cm PointcloudWithRoi, what the patched planner hands over\n"
+                   "  --input fruit-cloud  full-resolution red points without depth-edge removal (fruit_cloud_topic)\n"
+                   "  --no-depth-edges, --no-veil  switch off a step of the input stage\n"
+                   "  --input-outliers K,STD_MUL,RADIUS  switch on the input stage's outlier filter (off by default)\n"
+                   "  --out DIR        where the CSV and JSON files go (default results/<scene>-<input>-<profile>)\n";
       return 2;
     }
   }
-  if (spec.empty() || out.empty()) {
-    std::cerr << "run_trials: --scene and --out are required\n";
+  if (spec.empty()) {
+    std::cerr << "run_trials: --scene is required\n";
+    return 2;
+  }
+  if (!parseInput(input_name, &base.input)) {
+    std::cerr << "run_trials: --input must be camera, roi or fruit-cloud, not '" << input_name << "'\n";
     return 2;
   }
   if (profile == "paper") {
@@ -158,6 +181,12 @@ int main(int argc, char** argv) {
   red_test = base.upstream_red_test ? "upstream" : "hsv";
   if (velocity_scaling >= 0) base.arm_motion.velocity_scaling = base.arm_motion.acceleration_scaling = velocity_scaling;
   if (plan_overhead >= 0) base.view_cost = plan_overhead;
+  try {
+    estimator.input.validate();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "run_trials: " << e.what() << "\n";
+    return 2;
+  }
   if (const std::string bad = base.problem(); !bad.empty()) {
     std::cerr << "run_trials: " << bad << "\n";
     return 2;
@@ -178,6 +207,12 @@ int main(int argc, char** argv) {
   sim::Shading shading;
   shading.textures = base.textures;
   const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
+  if (out.empty()) {
+    std::string stem = scene.name;
+    for (char& c : stem)
+      if (c == '/' || c == ':' || c == ' ') c = '_';
+    out = "results/" + stem + "-" + input_name + "-" + profile;
+  }
   std::error_code mkdir_error;
   std::filesystem::create_directories(out, mkdir_error);
 
@@ -193,7 +228,7 @@ int main(int argc, char** argv) {
       p.seed = base.seed + static_cast<unsigned>(k);
       p.render_threads = jobs == 1 ? 2 : 1;
       ShapeEstimatorHost host;
-      host.add(std::make_unique<SuperellipsoidEstimator>());
+      host.add(std::make_unique<SuperellipsoidEstimator>(estimator));
       const auto t0 = std::chrono::steady_clock::now();
       results[k] = runEpisode(scene, renderer, truth, host, p);
       wall[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -275,7 +310,10 @@ int main(int argc, char** argv) {
   std::ostringstream body;
   body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"red_test\": " << jsonString(red_test) << ", \"textures\": " << (base.textures ? "true" : "false") << ", \"trials\": " << trials << ", \"duration_s\": "
        << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
-       << ", \"input_voxel_m\": " << jsonNumber(base.input_voxel) << ", \"truth_fruits\": " << truth.enclosed.size() << ", \"unscored_fruits\": " << truth.not_scored.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
+       << ", \"input\": " << jsonString(input_name) << ", \"input_stage\": {\"depth_edges\": "
+       << (estimator.input.drop_depth_edges ? "true" : "false") << ", \"outliers\": "
+       << (estimator.input.remove_outliers ? "true" : "false") << ", \"veil\": " << (estimator.input.drop_veil_points ? "true" : "false")
+       << "}" << ", \"truth_fruits\": " << truth.enclosed.size() << ", \"unscored_fruits\": " << truth.not_scored.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
        << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean) << ", \"robot\": "
        << jsonString(base.arm ? scene.robot.describe() : "none (free camera)") << ", \"velocity_scaling\": "
        << jsonNumber(base.arm ? base.arm_motion.velocity_scaling : 0.0) << ", \"plan_overhead_s\": " << jsonNumber(base.view_cost);

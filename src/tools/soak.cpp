@@ -72,18 +72,18 @@ int main(int argc, char** argv) {
   const auto truth_fruits = sim::computeFruitTruth(scene, &triangle_fruit);
   const sim::RgbdRenderer renderer(scene, triangle_fruit);
   std::vector<RecordedView> recorded;
+  const FruitInputStage stage;
   for (int e = 0; e < episodes; ++e) {
     planner::PlannerParams params;
     params.seed = 11 + static_cast<unsigned>(e);
     const planner::SceneTruth truth = planner::makeSceneTruth(truth_fruits, params.octree_resolution);
     planner::ShapeEstimatorHost none;
     planner::runEpisode(scene, renderer, truth, none, params,
-                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
-                            const sim::FrameClouds& clouds) {
-                          Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-                          pose.linear() = cam.rotation;
-                          pose.translation() = cam.position;
-                          recorded.push_back({clouds.fruit, pose});
+                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const sim::RgbdFrame&,
+                            const planner::ViewData& view) {
+                          // The stage's output: the soak replays fruit points, not whole frames.
+                          const FruitInput in = stage.processFrame(*view.camera_frame, view.sensor_pose, view.fruit_mask);
+                          recorded.push_back({in.fruit, view.sensor_pose});
                           return true;
                         });
   }

@@ -15,9 +15,9 @@
 namespace fruit_shape_completion {
 namespace bench {
 
-// Runs the episode; returns the scene it ran on. `input_voxel` as in PlannerParams.
-inline std::string recordEpisode(double input_voxel,
-                                 const std::function<void(const PinholeCamera&, const sim::FrameClouds&)>& on_view) {
+// Runs the episode; returns the scene it ran on. on_view gets what the estimators would get.
+inline std::string recordEpisode(planner::PlannerParams::Input input,
+                                 const std::function<void(const PinholeCamera&, const planner::ViewData&)>& on_view) {
   const char* env = std::getenv("FSC_SHARED_DATA");
   std::string name = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
   sim::Scene scene;
@@ -31,14 +31,14 @@ inline std::string recordEpisode(double input_voxel,
   planner::PlannerParams params;
   params.duration = 120.0;
   params.seed = 3;
-  params.input_voxel = input_voxel;
+  params.input = input;
   const planner::SceneTruth truth = planner::makeSceneTruth(fruits, params.octree_resolution);
   const sim::RgbdRenderer renderer(scene, triangle_fruit);
   planner::ShapeEstimatorHost host;  // none: the episode only records what the camera saw
   planner::runEpisode(scene, renderer, truth, host, params,
-                      [&](const planner::ViewRecord&, const planner::RoiOcTree&, const PinholeCamera& cam,
-                          const sim::FrameClouds& clouds) {
-                        on_view(cam, clouds);
+                      [&](const planner::ViewRecord&, const planner::RoiOcTree&, const sim::RgbdFrame& frame,
+                          const planner::ViewData& view) {
+                        on_view(frame.camera, view);
                         return true;
                       });
   return name;

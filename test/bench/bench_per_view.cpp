@@ -1,9 +1,9 @@
-// The whole per-view update as the plugin runs it: insert a masked fruit frame into the TSDF
-// map, extract the surface, cluster, fit incrementally, predict the missing surface, hand out
+// The whole per-view update as the plugin runs it: the camera's organized frame through the
+// fruit input stage (red test, depth edges, outliers) into the TSDF map, extract the surface, cluster, fit incrementally, predict the missing surface, hand out
 // the extra targets. Run: scripts/run.sh bench --benchmark_filter=PerView --benchmark_format=json
 //
 // The view sequence is recorded once per process from a seeded planner episode on scenario 2
-// (../shared/data; the procedural glasshouse when it is absent): the masked fruit cloud and the
+// (../shared/data; the procedural glasshouse when it is absent): the organized frame and the
 // sensor pose of every view, with depth noise. Each iteration replays it into a fresh estimator.
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
@@ -21,7 +21,7 @@ using namespace fruit_shape_completion;
 namespace {
 
 struct RecordedView {
-  PointList fruit;
+  OrganizedFrame frame;  // the camera's organized cloud, as a real camera publishes it
   Eigen::Isometry3d pose;
 };
 
@@ -33,12 +33,10 @@ struct Recording {
 const Recording& recording() {
   static const Recording rec = [] {
     Recording r;
-    r.scene = bench::recordEpisode(0.0, [&](const PinholeCamera& cam, const sim::FrameClouds& clouds) {
-      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-      pose.linear() = cam.rotation;
-      pose.translation() = cam.position;
-      r.views.push_back({clouds.fruit, pose});
-    });
+    r.scene = bench::recordEpisode(planner::PlannerParams::Input::kCamera,
+                                   [&](const PinholeCamera&, const planner::ViewData& view) {
+                                     r.views.push_back({*view.camera_frame, view.sensor_pose});
+                                   });
     return r;
   }();
   return rec;
@@ -60,7 +58,9 @@ static void BM_PerViewUpdate(benchmark::State& state) {
     planner::SuperellipsoidEstimator estimator;
     for (const auto& v : rec.views) {
       const auto t0 = std::chrono::steady_clock::now();
-      estimator.insertView({v.fruit, none, v.pose, 0.0});
+      planner::ViewData view{none, none, v.pose, 0.0, planner::ViewSource::kCameraFrame};
+      view.camera_frame = &v.frame;
+      estimator.insertView(view);
       integrate_s += estimator.lastIntegration().seconds;
       merge_s += estimator.lastIntegration().merge_seconds;
       neighbourhood_s += estimator.lastIntegration().neighbourhood_seconds;

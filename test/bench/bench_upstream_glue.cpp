@@ -31,17 +31,14 @@ struct RoiMessage {
 const std::vector<RoiMessage>& roiMessages() {
   static const std::vector<RoiMessage> messages = [] {
     std::vector<RoiMessage> out;
-    bench::recordEpisode(0.01, [&](const PinholeCamera& cam, const sim::FrameClouds& clouds) {  // 1 cm, as pointcloud_roi
+    bench::recordEpisode(planner::PlannerParams::Input::kRoi, [&](const PinholeCamera&, const planner::ViewData& view) {
       RoiMessage m;
-      m.cloud = ros_io::toCloud(clouds.full, "world", ros::Time(0));
+      const PointList& all = view.full_cloud;
+      m.cloud = ros_io::toCloud(all, "world", ros::Time(0));
       std::map<std::array<double, 3>, std::int32_t> index;
-      for (std::size_t i = 0; i < clouds.full.size(); ++i)
-        index[{clouds.full[i].x(), clouds.full[i].y(), clouds.full[i].z()}] = static_cast<std::int32_t>(i);
-      for (const auto& p : clouds.fruit) m.roi_indices.push_back(index.at({p.x(), p.y(), p.z()}));
-      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-      pose.linear() = cam.rotation;
-      pose.translation() = cam.position;
-      m.transform = tf2::eigenToTransform(pose).transform;
+      for (std::size_t i = 0; i < all.size(); ++i) index[{all[i].x(), all[i].y(), all[i].z()}] = static_cast<std::int32_t>(i);
+      for (const auto& p : view.fruit_cloud) m.roi_indices.push_back(index.at({p.x(), p.y(), p.z()}));
+      m.transform = tf2::eigenToTransform(view.sensor_pose).transform;
       out.push_back(std::move(m));
     });
     return out;
@@ -70,7 +67,7 @@ static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
         return;
       }
       const auto t1 = std::chrono::steady_clock::now();
-      estimator.insertView({view.fruit, view.all, view.sensor_pose, 0.0});
+      estimator.insertView({view.fruit, view.all, view.sensor_pose, 0.0, planner::ViewSource::kRoiCloud});
       estimator.update();
       const auto t2 = std::chrono::steady_clock::now();
       read_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());

@@ -310,7 +310,7 @@ TEST(ViewpointPlanner, AViewThatRunsOutOfMemoryIsDroppedAndTheEpisodeGoesOn) {
   p.duration = 30;
   int calls = 0;
   const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, p,
-                                     [&](const ViewRecord&, const RoiOcTree&, const PinholeCamera&, const sim::FrameClouds&) {
+                                     [&](const ViewRecord&, const RoiOcTree&, const sim::RgbdFrame&, const ViewData&) {
                                        if (++calls == 2) {
                                          FailLargeAllocations oom;
                                          std::vector<double> big(1 << 20);  // throws

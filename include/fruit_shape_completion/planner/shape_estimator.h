@@ -6,6 +6,7 @@
 #include <fruit_shape_completion/fruit_estimate.h>
 
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -13,13 +14,28 @@
 #include <vector>
 
 namespace fruit_shape_completion {
+
+struct OrganizedFrame;  // fruit_input_stage.h
+
 namespace planner {
 
+// What a view's points are, and so which steps of the fruit input stage (fruit_input_stage.h)
+// they still need.
+enum class ViewSource {
+  kFruitPoints,  // fruit_cloud is ready for the map: integrated as it is
+  kFruitCloud,   // an external detector's full-resolution fruit points: outlier removal first
+  kRoiCloud,     // pointcloud_roi's 1 cm view: full_cloud all of it, fruit_cloud its ROI points
+  kCameraFrame,  // camera_frame (and fruit_mask, if a detector made one): the whole stage
+};
+
 struct ViewData {
-  const PointList& fruit_cloud;  // masked fruit points, map frame
-  const PointList& full_cloud;   // all points, map frame
+  const PointList& fruit_cloud;   // fruit points, map frame
+  const PointList& full_cloud;    // all points, map frame
   Eigen::Isometry3d sensor_pose;  // sensor -> map, optical axis +z
-  double time = 0.0;              // [s] since the episode start
+  double time = 0.0;              // [s] the view's stamp (ROS time, or time since the episode start)
+  ViewSource source = ViewSource::kFruitPoints;
+  const OrganizedFrame* camera_frame = nullptr;           // kCameraFrame, in the sensor frame
+  const std::vector<std::uint8_t>* fruit_mask = nullptr;  // kCameraFrame: replaces the red test
 };
 
 // Implementations must be thread-safe: the upstream planner inserts views from its spinner

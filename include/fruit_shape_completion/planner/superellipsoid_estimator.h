@@ -1,9 +1,11 @@
 #pragma once
 // The superellipsoid shape estimator: TSDF fruit map -> surface -> clusters -> fits ->
 // predicted unseen surface. Thread-safe: views may be inserted from one thread (sensor
-// callbacks) while another (the planner) asks for fruits and targets. Queries read the last
+// callbacks) while another (the planner) asks for fruits and targets. Every view first goes
+// through the fruit input stage (fruit_input_stage.h) as its source asks. Queries read the last
 // update's results and never wait for a fit; a view inserted during a fit waits only for the
 // surface extraction.
+#include <fruit_shape_completion/fruit_input_stage.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
@@ -15,6 +17,7 @@ namespace fruit_shape_completion {
 namespace planner {
 
 struct SuperellipsoidEstimatorParams {
+  FruitInputParams input;
   TsdfMapParams map;
   TsdfIntegratorParams integrator;
   SurfaceExtractionParams surface;
@@ -32,6 +35,9 @@ struct EstimatorStatus {
   std::size_t blocks = 0, max_blocks = 0;
   double memory_mb = 0.0;
   std::size_t fruits = 0;  // accepted at the last update
+  // The fruit input stage's totals: views by source, and the points each step dropped.
+  std::size_t camera_frames = 0, roi_views = 0, fruit_clouds = 0;
+  std::size_t masked_points = 0, depth_edge_points = 0, veil_points = 0, outlier_points = 0;
 };
 
 class SuperellipsoidEstimator : public ShapeEstimator {
@@ -52,12 +58,15 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::vector<FruitEstimate> estimates() const;
   PointList surface() const;
   IntegrationReport lastIntegration() const;
+  // The input stage's report of the last view (its points not kept).
+  FruitInput lastInput() const;
   PipelineStats lastPipelineStats() const;
   EstimatorStatus status() const;
   double lastSurfaceSeconds() const;  // surface extraction of the last update
 
  private:
   SuperellipsoidEstimatorParams params_;
+  FruitInputStage input_stage_;  // const after construction: runs outside the locks
   // Lock order: fit_mutex_, then map_mutex_, then results_mutex_.
   std::mutex fit_mutex_;  // one update at a time; guards pipeline_
   FruitShapePipeline pipeline_;
@@ -65,6 +74,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   TsdfMap map_;
   TsdfIntegrator integrator_;
   IntegrationReport last_;
+  FruitInput last_input_;
   EstimatorStatus totals_;
   bool dirty_ = false;
   mutable std::mutex results_mutex_;  // guards the last update's results below

@@ -38,12 +38,16 @@ struct PlannerParams {
   unsigned seed = 1;
   int render_threads = 1;
   bool depth_noise = true;
-  // > 0: the estimators get what pointcloud_roi publishes instead of the full-resolution fruit
-  // cloud: the coloured cloud voxel-downsampled to this leaf size [m] (upstream: 0.01), and the
-  // red test applied to the voxels' mean colours.
-  double input_voxel = 0.0;
-  // Fruit pixels at depth discontinuities (depth_edges.h) leave the full-resolution fruit cloud.
-  bool drop_depth_edges = true;
+  // What the estimators get, as a robot's stack hands it to the plugin:
+  //  kCamera: the organized camera frame (depth_image_proc) with its pose; the product's whole
+  //    fruit input stage runs on it (red test, depth edges, outliers);
+  //  kRoi: pointcloud_roi's PointcloudWithRoi (1 cm voxel means, red indices): what the patched
+  //    upstream planner hands over when nothing else is configured;
+  //  kFruitCloud: a simple_roi_detector-like node's full-resolution red points, without depth
+  //    edges removed (the plugin's fruit_cloud_topic).
+  enum class Input { kCamera, kRoi, kFruitCloud };
+  Input input = Input::kCamera;
+  double roi_leaf = 0.01;  // [m] pointcloud_roi's voxel grid
   // The paper-like profile's parts (paperProfile()); the defaults are the ideal simulation.
   bool paper_depth_noise = false;   // the paper's structured noise and blur (sim::DepthNoise::kPaper)
   bool upstream_red_test = false;   // pointcloud_roi's HSI red test (sim::RedThreshold::kUpstream)
@@ -112,9 +116,12 @@ struct SceneTruth {
 // All three from the scene's red ground-truth fruits; `resolution` is the ROI octree's.
 SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution);
 
-// Called after every view (e.g. to publish it); return false to stop the episode.
-using ViewCallback = std::function<bool(const ViewRecord&, const RoiOcTree&, const PinholeCamera&,
-                                        const sim::FrameClouds&)>;
+// Called after every view (e.g. to publish it) with the rendered frame and what the estimators
+// were given; return false to stop the episode.
+using ViewCallback = std::function<bool(const ViewRecord&, const RoiOcTree&, const sim::RgbdFrame&, const ViewData&)>;
+
+const char* toString(PlannerParams::Input input);
+bool parseInput(const std::string& name, PlannerParams::Input* input);  // camera, roi, fruit-cloud
 
 EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
                          const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& params,

@@ -18,6 +18,8 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
 
 // A string parameter, if present; present with another type throws std::runtime_error naming it.
 void readStringParam(const ros::NodeHandle& nh, const std::string& name, std::string* value);
+void readNumberParam(const ros::NodeHandle& nh, const std::string& name, double* value);
+void readIntParam(const ros::NodeHandle& nh, const std::string& name, int* value);
 
 }  // namespace ros_io
 }  // namespace fruit_shape_completion

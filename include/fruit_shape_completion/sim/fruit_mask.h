@@ -12,8 +12,7 @@ namespace fruit_shape_completion {
 namespace sim {
 
 // The red test. kHsv: hue within max_hue_deg of 0 (red), enough saturation and brightness.
-// kUpstream: pointcloud_roi's test on PCL's packed HSI (hue in 1/128 half-turns, saturation and
-// intensity 0-255): fruit unless hue < -20 or > 35, saturation < 30 or intensity < 30.
+// kUpstream: pointcloud_roi's test, the product's HsiRedTest (hsi_red_test.h).
 struct RedThreshold {
   enum class Test { kHsv, kUpstream };
   Test test = Test::kHsv;

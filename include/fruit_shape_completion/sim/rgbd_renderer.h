@@ -3,6 +3,7 @@
 // camera (640x480, 80 degree horizontal field of view, 0.15-3 m by default), colour from the
 // material (flat, or its texture as Gazebo draws it), per-pixel ground-truth labels, and an
 // optional depth noise model.
+#include <fruit_shape_completion/fruit_input_stage.h>
 #include <fruit_shape_completion/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/sim/scene.h>
 
@@ -86,6 +87,13 @@ class RgbdRenderer {
 // `full_pixels`, if given, receives the pixel index of each point of the full cloud.
 FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8_t>& mask,
                             std::vector<std::size_t>* full_pixels = nullptr);
+
+// The frame as a camera driver publishes it (depth_image_proc's point_cloud_xyzrgb): organized
+// XYZRGB in the camera's optical frame, NaN where there is no depth. What the product's input
+// stage gets from a real camera.
+OrganizedFrame organizedFrame(const RgbdFrame& frame);
+// The camera's pose (camera -> world) as a robot's tf gives it.
+Eigen::Isometry3d cameraPose(const PinholeCamera& camera);
 
 }  // namespace sim
 }  // namespace fruit_shape_completion

@@ -1,0 +1,51 @@
+#pragma once
+// The camera's organized clouds for the fruit input stage: reading and writing them as
+// depth_image_proc's point_cloud_xyzrgb publishes them (float32 x, y, z and a packed rgb field,
+// NaN where there is no return), and a bounded buffer that pairs a planner view with the frame
+// the view was made from (the nearest stamp).
+#include <fruit_shape_completion/fruit_input_stage.h>
+
+#include <ros/time.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <cstddef>
+#include <deque>
+#include <mutex>
+#include <string>
+
+namespace fruit_shape_completion {
+namespace ros_io {
+
+// False with a message for a cloud that is not organized (height 1), lacks float32 x, y, z or a
+// packed rgb/rgba field, is big-endian, or whose steps and data size disagree.
+bool fromOrganizedCloud(const sensor_msgs::PointCloud2& msg, OrganizedFrame* frame, std::string* error);
+// The frame as depth_image_proc publishes it (32-byte points: x, y, z, pad, rgb as float32).
+sensor_msgs::PointCloud2 toOrganizedCloud(const OrganizedFrame& frame, const std::string& frame_id,
+                                          const ros::Time& stamp);
+
+// The last camera clouds, bounded by count and bytes; thread-safe. Clouds are kept as received
+// (shared, not copied) and converted only when a view takes one.
+class CameraFrameBuffer {
+ public:
+  CameraFrameBuffer(std::size_t max_frames, std::size_t max_bytes) : max_frames_(max_frames), max_bytes_(max_bytes) {}
+  enum class Push { kStored, kClockJumpedBack, kTooLarge };
+  // kClockJumpedBack: the stamp is older than the newest frame (a bag that loops); the buffer
+  // was cleared and holds only this frame. kTooLarge: one frame exceeds max_bytes, not stored.
+  Push push(const sensor_msgs::PointCloud2ConstPtr& cloud);
+  // The frame nearest `stamp` within `tolerance` (nullptr if none); it and older frames leave
+  // the buffer (a view is never paired with an earlier frame after a later one).
+  sensor_msgs::PointCloud2ConstPtr take(const ros::Time& stamp, double tolerance);
+  void clear();
+  std::size_t size() const;
+  std::size_t evicted() const;  // frames pushed out by the bounds before any view took them
+
+ private:
+  std::size_t bytesLocked() const;
+  const std::size_t max_frames_, max_bytes_;
+  mutable std::mutex mutex_;
+  std::deque<sensor_msgs::PointCloud2ConstPtr> frames_;  // oldest first
+  std::size_t evicted_ = 0;
+};
+
+}  // namespace ros_io
+}  // namespace fruit_shape_completion

@@ -1,0 +1,125 @@
+#include <fruit_shape_completion/fruit_input_stage.h>
+#include <fruit_shape_completion/neighbour_grid.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace fruit_shape_completion {
+
+std::string OrganizedFrame::problem() const {
+  if (width <= 0 || height <= 0)
+    return "frame is " + std::to_string(width) + " x " + std::to_string(height) + " pixels";
+  if (width > 100000 || height > 100000 || pixels() > 50000000u)
+    return "frame of " + std::to_string(width) + " x " + std::to_string(height) + " pixels is beyond any camera";
+  if (xyz.size() != 3 * pixels())
+    return "frame has " + std::to_string(xyz.size()) + " coordinates for " + std::to_string(pixels()) + " pixels";
+  if (rgb.size() != 3 * pixels())
+    return "frame has " + std::to_string(rgb.size()) + " colour bytes for " + std::to_string(pixels()) + " pixels";
+  return {};
+}
+
+void FruitInputParams::validate() const {
+  depth_edges.validate();
+  outliers.validate();
+  if (!(veil_radius > 0.0 && veil_radius <= 0.2)) throw std::invalid_argument("veil_radius must be in (0, 0.2] m");
+  if (!(veil_angle_deg > 0.0 && veil_angle_deg < 90.0)) throw std::invalid_argument("veil_angle_deg must be in (0, 90)");
+  if (!(veil_min_gap >= 0.0 && veil_min_gap < veil_radius))
+    throw std::invalid_argument("veil_min_gap must be in [0, veil_radius)");
+}
+
+FruitInputStage::FruitInputStage(const FruitInputParams& params) : params_(params) { params_.validate(); }
+
+void FruitInputStage::removeOutliers(FruitInput* out) const {
+  // The statistic needs more points than neighbours; a handful of fruit points stays as it is.
+  if (!params_.remove_outliers || out->fruit.size() <= static_cast<std::size_t>(params_.outliers.k)) return;
+  const std::vector<char> outlier = findStatisticalOutliers(out->fruit, params_.outliers);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < out->fruit.size(); ++i)
+    if (!outlier[i]) out->fruit[kept++] = out->fruit[i];
+  out->outliers = out->fruit.size() - kept;
+  out->fruit.resize(kept);
+}
+
+FruitInput FruitInputStage::processFrame(const OrganizedFrame& frame, const Eigen::Isometry3d& camera_to_map,
+                                         const std::vector<std::uint8_t>* external_mask, bool full_cloud) const {
+  FruitInput out;
+  out.error = frame.problem();
+  if (out.ok() && external_mask && external_mask->size() != frame.pixels())
+    out.error = "the mask has " + std::to_string(external_mask->size()) + " pixels, the frame " +
+                std::to_string(frame.width) + " x " + std::to_string(frame.height);
+  if (out.ok() && !camera_to_map.matrix().allFinite()) out.error = "the camera pose is not finite";
+  if (!out.ok()) return out;
+  const std::size_t n = frame.pixels();
+  out.mask.assign(n, 0);
+  if (full_cloud) out.full.reserve(n);
+  for (std::size_t px = 0; px < n; ++px) {
+    const float* p = &frame.xyz[3 * px];
+    if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
+    ++out.points;
+    const std::uint8_t* c = &frame.rgb[3 * px];
+    const bool fruit = external_mask ? (*external_mask)[px] != 0 : params_.red_test.isRed(c[0], c[1], c[2]);
+    out.mask[px] = fruit ? 1 : 0;
+    out.masked += fruit ? 1 : 0;
+    if (full_cloud) out.full.push_back(camera_to_map * Eigen::Vector3d(p[0], p[1], p[2]));
+  }
+  std::vector<std::uint8_t> keep = out.mask;
+  if (params_.drop_depth_edges)
+    out.depth_edges = clearDepthEdges(frame.xyz.data() + 2, 3, frame.width, frame.height, &keep, params_.depth_edges);
+  out.fruit.reserve(out.masked - out.depth_edges);
+  for (std::size_t px = 0; px < n; ++px)
+    if (keep[px]) {
+      const float* p = &frame.xyz[3 * px];
+      out.fruit.push_back(camera_to_map * Eigen::Vector3d(p[0], p[1], p[2]));
+    }
+  removeOutliers(&out);
+  return out;
+}
+
+FruitInput FruitInputStage::processFruitCloud(const PointList& fruit) const {
+  FruitInput out;
+  out.fruit.reserve(fruit.size());
+  for (const auto& p : fruit) {
+    if (p.allFinite()) out.fruit.push_back(p);
+    else ++out.non_finite;
+  }
+  out.points = fruit.size();
+  removeOutliers(&out);
+  return out;
+}
+
+FruitInput FruitInputStage::processRoiCloud(const PointList& all, const PointList& fruit,
+                                            const Eigen::Vector3d& sensor_origin) const {
+  FruitInput out = processFruitCloud(PointList());
+  out.points = fruit.size();
+  if (!sensor_origin.allFinite()) {
+    out.error = "the sensor origin is not finite";
+    return out;
+  }
+  for (const auto& p : fruit)
+    if (!p.allFinite()) ++out.non_finite;
+  if (!params_.drop_veil_points || all.empty()) {
+    for (const auto& p : fruit)
+      if (p.allFinite()) out.fruit.push_back(p);
+    return out;
+  }
+  // A point with a neighbour nearly along its own camera ray lies where the depth jumps: the
+  // blurred outline between a fruit and what is behind it, strung out along the rays.
+  const NeighbourGrid grid(all, params_.veil_radius);
+  const double sin_limit = std::sin(params_.veil_angle_deg * M_PI / 180.0);
+  const double min_gap2 = params_.veil_min_gap * params_.veil_min_gap;
+  for (const auto& p : fruit) {
+    if (!p.allFinite()) continue;
+    const Eigen::Vector3d ray = (p - sensor_origin).normalized();
+    bool veil = false;
+    grid.forEachWithin(p, params_.veil_radius, [&](int, double d2, const Point& q) {
+      if (veil || d2 < min_gap2) return;
+      const Eigen::Vector3d v = q - p;
+      veil = v.cross(ray).norm() < sin_limit * std::sqrt(d2);
+    });
+    if (veil) ++out.veil;
+    else out.fruit.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace fruit_shape_completion
