@@ -1,0 +1,184 @@
+// The fruit input stage on the camera's 640 x 480 organized frames of a seeded scenario-2
+// episode (paper profile: textures, blurred depth noise), one core; and PCL's equivalents of its
+// hand-written steps on the same frames, the evidence for keeping them (docs/benchmarks.md).
+// Run: scripts/run.sh bench --benchmark_filter=InputStage --benchmark_format=json
+#include <benchmark/benchmark.h>
+#include <fruit_shape_completion/fruit_input_stage.h>
+#include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/sim/fruit_truth.h>
+#include <fruit_shape_completion/sim/procedural_scene.h>
+
+#include <pcl/features/organized_edge_detection.h>
+#include <pcl/filters/statistical_outlier_removal.h>
+#include <pcl/point_types.h>
+
+#include "bench_episode.h"
+
+#include <chrono>
+#include <cstdlib>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+struct Frames {
+  std::string scene;
+  std::vector<std::pair<OrganizedFrame, Eigen::Isometry3d>> frames;
+};
+
+// Every view of a 60 s paper-profile episode on scenario 2.
+const Frames& frames() {
+  static const Frames f = [] {
+    Frames out;
+    const char* env = std::getenv("FSC_SHARED_DATA");
+    out.scene = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
+    sim::Scene scene;
+    std::string err;
+    if (!sim::loadSceneSpec(out.scene, &scene, &err)) sim::loadSceneSpec(out.scene = "procedural", &scene, &err);
+    std::vector<int> triangle_fruit;
+    const auto truth_fruits = sim::computeFruitTruth(scene, &triangle_fruit);
+    planner::PlannerParams params = planner::paperProfile();
+    params.duration = 60.0;
+    params.seed = 3;
+    sim::Shading shading;
+    shading.textures = params.textures;
+    const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
+    planner::ShapeEstimatorHost none;
+    planner::runEpisode(scene, renderer, planner::makeSceneTruth(truth_fruits, params.octree_resolution), none, params,
+                        [&](const planner::ViewRecord&, const planner::RoiOcTree&, const sim::RgbdFrame&,
+                            const planner::ViewData& view) {
+                          out.frames.emplace_back(*view.camera_frame, view.sensor_pose);
+                          return true;
+                        });
+    return out;
+  }();
+  return f;
+}
+
+pcl::PointCloud<pcl::PointXYZ>::Ptr pclFrame(const OrganizedFrame& f) {
+  pcl::PointCloud<pcl::PointXYZ>::Ptr c(new pcl::PointCloud<pcl::PointXYZ>(f.width, f.height));
+  for (std::size_t px = 0; px < f.pixels(); ++px) {
+    (*c)[px].x = f.xyz[3 * px];
+    (*c)[px].y = f.xyz[3 * px + 1];
+    (*c)[px].z = f.xyz[3 * px + 2];
+  }
+  c->is_dense = false;
+  return c;
+}
+
+void perFrame(benchmark::State& state, const std::function<std::size_t(const OrganizedFrame&, const Eigen::Isometry3d&)>& run) {
+  const Frames& f = frames();
+  if (f.frames.empty()) {
+    state.SkipWithError("the recorded episode has no views");
+    return;
+  }
+  std::vector<double> ms;
+  std::size_t out = 0;
+  for (auto _ : state)
+    for (const auto& [frame, pose] : f.frames) {
+      const auto t0 = std::chrono::steady_clock::now();
+      out += run(frame, pose);
+      ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+  state.counters["frames"] = static_cast<double>(f.frames.size());
+  state.counters["median_ms"] = bench::quantile(ms, 0.5);
+  state.counters["p95_ms"] = bench::quantile(ms, 0.95);
+  state.counters["out_per_frame"] = static_cast<double>(out) / static_cast<double>(ms.size());
+  state.SetLabel(f.scene);
+}
+
+}  // namespace
+
+// The stage as the estimator runs it (defaults: red test, depth edges; outliers off).
+static void BM_FruitInputStage(benchmark::State& state) {
+  const FruitInputStage stage;
+  std::size_t masked = 0, n = 0;
+  perFrame(state, [&](const OrganizedFrame& f, const Eigen::Isometry3d& pose) {
+    const FruitInput in = stage.processFrame(f, pose);
+    masked += in.masked;
+    ++n;
+    return in.fruit.size();
+  });
+  state.counters["fruit_share"] = n ? static_cast<double>(masked) / static_cast<double>(n) / (640.0 * 480.0) : 0.0;
+}
+BENCHMARK(BM_FruitInputStage)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// With the outlier filter switched on (k 5, 1 sigma, 5 mm).
+static void BM_FruitInputStageWithOutliers(benchmark::State& state) {
+  FruitInputParams p;
+  p.remove_outliers = true;
+  const FruitInputStage stage(p);
+  perFrame(state, [&](const OrganizedFrame& f, const Eigen::Isometry3d& pose) { return stage.processFrame(f, pose).fruit.size(); });
+}
+BENCHMARK(BM_FruitInputStageWithOutliers)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// The stage's depth-edge step (only the masked pixels are tested) against PCL's organized edge
+// detection (occluding + occluded, 2 % depth threshold) over the frame, conversion excluded.
+static void BM_InputStageDepthEdgesOnly(benchmark::State& state) {
+  const FruitInputStage stage;
+  std::vector<std::vector<std::uint8_t>> masks;
+  for (const auto& [f, pose] : frames().frames) masks.push_back(stage.processFrame(f, pose).mask);
+  std::size_t i = 0;
+  perFrame(state, [&](const OrganizedFrame& f, const Eigen::Isometry3d&) {
+    std::vector<std::uint8_t> keep = masks[i++ % masks.size()];
+    return clearDepthEdges(f.xyz.data() + 2, 3, f.width, f.height, &keep);
+  });
+}
+BENCHMARK(BM_InputStageDepthEdgesOnly)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+static void BM_InputStageDepthEdgesPcl(benchmark::State& state) {
+  std::vector<pcl::PointCloud<pcl::PointXYZ>::Ptr> clouds;
+  for (const auto& [f, pose] : frames().frames) clouds.push_back(pclFrame(f));
+  std::size_t i = 0;
+  perFrame(state, [&](const OrganizedFrame&, const Eigen::Isometry3d&) {
+    pcl::OrganizedEdgeBase<pcl::PointXYZ, pcl::Label> oed;
+    oed.setInputCloud(clouds[i++ % clouds.size()]);
+    oed.setDepthDisconThreshold(0.02f);
+    oed.setEdgeType(oed.EDGELABEL_OCCLUDING | oed.EDGELABEL_OCCLUDED);
+    pcl::PointCloud<pcl::Label> labels;
+    std::vector<pcl::PointIndices> indices;
+    oed.compute(labels, indices);
+    return indices[1].indices.size() + indices[2].indices.size();
+  });
+}
+BENCHMARK(BM_InputStageDepthEdgesPcl)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// The outlier statistic on each frame's fruit points: the stage's grid against PCL's
+// StatisticalOutlierRemoval (kd-tree), same k and multiplier.
+static void BM_InputStageOutliersOnly(benchmark::State& state) {
+  const FruitInputStage stage;
+  const OutlierFilterParams p{5, 1.0, 0.005};
+  std::vector<PointList> fruit;
+  for (const auto& [f, pose] : frames().frames) fruit.push_back(stage.processFrame(f, pose).fruit);
+  std::size_t i = 0;
+  perFrame(state, [&](const OrganizedFrame&, const Eigen::Isometry3d&) {
+    std::size_t n = 0;
+    for (char o : findStatisticalOutliers(fruit[i++ % fruit.size()], p)) n += o;
+    return n;
+  });
+}
+BENCHMARK(BM_InputStageOutliersOnly)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+static void BM_InputStageOutliersPcl(benchmark::State& state) {
+  const FruitInputStage stage;
+  std::vector<pcl::PointCloud<pcl::PointXYZ>::Ptr> fruit;
+  for (const auto& [f, pose] : frames().frames) {
+    pcl::PointCloud<pcl::PointXYZ>::Ptr c(new pcl::PointCloud<pcl::PointXYZ>);
+    for (const auto& p : stage.processFrame(f, pose).fruit)
+      c->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+    fruit.push_back(c);
+  }
+  std::size_t i = 0;
+  perFrame(state, [&](const OrganizedFrame&, const Eigen::Isometry3d&) {
+    const auto& c = fruit[i++ % fruit.size()];
+    if (c->size() < 6) return std::size_t(0);
+    pcl::StatisticalOutlierRemoval<pcl::PointXYZ> sor;
+    sor.setInputCloud(c);
+    sor.setMeanK(5);
+    sor.setStddevMulThresh(1.0);
+    pcl::Indices kept;
+    sor.filter(kept);
+    return c->size() - kept.size();
+  });
+}
+BENCHMARK(BM_InputStageOutliersPcl)->Unit(benchmark::kMillisecond)->Iterations(3);
