@@ -97,10 +97,11 @@ CameraFrameBuffer::Push CameraFrameBuffer::push(const sensor_msgs::PointCloud2Co
   if (cloud->data.size() > max_bytes_) return Push::kTooLarge;
   std::lock_guard<std::mutex> lock(mutex_);
   Push result = Push::kStored;
-  if (!frames_.empty() && cloud->header.stamp < frames_.back()->header.stamp) {
+  if (cloud->header.stamp < newest_) {
     frames_.clear();
     result = Push::kClockJumpedBack;
   }
+  newest_ = cloud->header.stamp;
   frames_.push_back(cloud);
   while (frames_.size() > max_frames_ || bytesLocked() > max_bytes_) {
     frames_.pop_front();
@@ -129,6 +130,7 @@ sensor_msgs::PointCloud2ConstPtr CameraFrameBuffer::take(const ros::Time& stamp,
 void CameraFrameBuffer::clear() {
   std::lock_guard<std::mutex> lock(mutex_);
   frames_.clear();
+  newest_ = ros::Time();
 }
 
 std::size_t CameraFrameBuffer::size() const {

@@ -4,12 +4,14 @@
 #include <std_srvs/Empty.h>
 #include <unistd.h>
 #include <fruit_shape_completion/sim/analytic_depth_camera.h>
+#include <fruit_shape_completion/ros/camera_frames.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 #include <fruit_shape_completion/ros/shape_estimator_loader.h>
 #include <fruit_shape_completion/ros/upstream_messages.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
+#include <fruit_shape_completion/sim/rgbd_renderer.h>
 #include <fruit_shape_completion/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
@@ -126,6 +128,29 @@ struct FruitOnALeaf {
       }
   }
 };
+
+// What depth_image_proc publishes for a camera over an analytic scene: organized, in the camera
+// frame, shape 0 red and the rest green.
+OrganizedFrame organizedRender(const AnalyticScene& scene, const PinholeCamera& cam) {
+  OrganizedFrame f;
+  f.width = cam.width;
+  f.height = cam.height;
+  f.xyz.assign(3 * f.pixels(), std::numeric_limits<float>::quiet_NaN());
+  f.rgb.assign(3 * f.pixels(), 0);
+  for (int v = 0; v < cam.height; ++v)
+    for (int u = 0; u < cam.width; ++u) {
+      const Eigen::Vector3d dir = cam.rayDirection(u, v);
+      double t = 0;
+      const int hit = scene.intersect(cam.position, dir, cam.min_range, cam.max_range, &t);
+      if (hit < 0) continue;
+      const std::size_t px = static_cast<std::size_t>(v) * cam.width + u;
+      const Eigen::Vector3d p = cam.rotation.transpose() * (t * dir);
+      for (int k = 0; k < 3; ++k) f.xyz[3 * px + k] = static_cast<float>(p[k]);
+      const std::uint8_t red[3] = {190, 25, 20}, green[3] = {40, 150, 35};
+      for (int k = 0; k < 3; ++k) f.rgb[3 * px + k] = hit == 0 ? red[k] : green[k];
+    }
+  return f;
+}
 
 // `~shape_estimators` under nh, as the planner's launch file sets it: one estimator.
 void setOneEstimator(const ros::NodeHandle& nh, const std::string& name, const std::string& type) {
@@ -355,6 +380,72 @@ TEST(Plugin, FullResolutionFruitCloudTopicFeedsTheMapInsteadOfThePlannersViews) 
   ASSERT_EQ(plugin->fruits().size(), 1u);
   EXPECT_LT((plugin->fruits()[0].center() - s.truth.t).norm(), 0.005);
   EXPECT_NEAR(plugin->fruits()[0].volume, s.truth.volume(), 0.1 * s.truth.volume());
+  plugin.reset();
+}
+
+TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
+  pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
+  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
+  ros::NodeHandle nh("~/camera");
+  nh.setParam("superellipsoids_topic", "superellipsoids");
+  nh.setParam("camera_cloud_topic", "camera_points");
+  plugin->initialize("camera", nh, "world");
+  auto count = [&](const std::string& key) {
+    for (const auto& kv : plugin->diagnostics())
+      if (kv.first == key) return std::stoul(kv.second);
+    ADD_FAILURE() << "no diagnostics entry '" << key << "'";
+    return 0ul;
+  };
+  const FruitOnALeaf s;
+  tf2_ros::StaticTransformBroadcaster tf;
+  std::vector<geometry_msgs::TransformStamped> poses;
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(sim::cameraPose(s.cameras[i]));
+    t.header.frame_id = "world";
+    t.child_frame_id = "camera_optical_" + std::to_string(i);
+    poses.push_back(t);
+  }
+  tf.sendTransform(poses);
+  ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("camera_points", 4);
+  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0; }, 10.0));
+  // Each planner view (pointcloud_roi's 1 cm cloud, stamped as the camera frame it came from)
+  // is paired with its frame: the map gets the full-resolution frame through the input stage.
+  std::size_t views = 0;
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    const ros::Time stamp(1000.0 + i);
+    pub.publish(ros_io::toOrganizedCloud(organizedRender(s.scene, s.cameras[i]), poses[i].child_frame_id, stamp));
+    ASSERT_TRUE(waitFor([&] { return count("camera frames received") == i + 1; }, 10.0));
+    const auto coarse = roiCloud(s.scene, 1, s.cameras[i]);
+    PointList all, fruit;
+    std::size_t bad = 0;
+    std::string err;
+    ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
+    plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), stamp.toSec(), planner::ViewSource::kRoiCloud});
+    ++views;
+    EXPECT_EQ(count("views fed by their camera frame"), i + 1);
+  }
+  plugin->update();
+  ASSERT_EQ(plugin->fruits().size(), 1u);
+  EXPECT_LT((plugin->fruits()[0].center() - s.truth.t).norm(), 0.005);
+  EXPECT_NEAR(plugin->fruits()[0].volume, s.truth.volume(), 0.1 * s.truth.volume());
+  EXPECT_GT(count("input: dropped at depth edges"), 0u);
+  // A view whose frame never came goes in with its own cloud, counted.
+  const auto coarse = roiCloud(s.scene, 1, s.cameras[0]);
+  PointList all, fruit;
+  std::size_t bad = 0;
+  std::string err;
+  ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
+  plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), 5000.0, planner::ViewSource::kRoiCloud});
+  EXPECT_EQ(count("views fed by their own (1 cm) cloud: no frame paired"), 1u);
+  EXPECT_EQ(count("  of which: no frame within the tolerance"), 1u);
+  EXPECT_EQ(count("views"), views + 1);
+  // A cloud that is not organized is ignored and counted; a stamp back in time (a looping bag)
+  // clears the buffer, keeps the map and is counted.
+  pub.publish(ros_io::toCloud(all, poses[0].child_frame_id, ros::Time(2000.0)));
+  EXPECT_TRUE(waitFor([&] { return count("camera clouds not organized (ignored)") == 1; }, 10.0));
+  pub.publish(ros_io::toOrganizedCloud(organizedRender(s.scene, s.cameras[0]), poses[0].child_frame_id, ros::Time(10.0)));
+  EXPECT_TRUE(waitFor([&] { return count("camera clock jumps back (buffer cleared)") == 1; }, 10.0));
+  EXPECT_EQ(plugin->fruits().size(), 1u);
   plugin.reset();
 }
 

@@ -45,6 +45,7 @@ class CameraFrameBuffer {
   mutable std::mutex mutex_;
   std::deque<sensor_msgs::PointCloud2ConstPtr> frames_;  // oldest first
   std::size_t evicted_ = 0;
+  ros::Time newest_;  // the newest stamp pushed, taken frames included
 };
 
 }  // namespace ros_io
