@@ -89,7 +89,7 @@ FruitInput FruitInputStage::processFruitCloud(const PointList& fruit) const {
 
 FruitInput FruitInputStage::processRoiCloud(const PointList& all, const PointList& fruit,
                                             const Eigen::Vector3d& sensor_origin) const {
-  FruitInput out = processFruitCloud(PointList());
+  FruitInput out;
   out.points = fruit.size();
   if (!sensor_origin.allFinite()) {
     out.error = "the sensor origin is not finite";
