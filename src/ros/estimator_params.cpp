@@ -48,6 +48,12 @@ void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>
 
 }  // namespace
 
+const std::vector<std::string>& pluginInputKeys() {
+  static const std::vector<std::string> keys = {"superellipsoids_topic", "fruit_cloud_topic",     "camera_cloud_topic",
+                                                "camera_pair_tolerance", "camera_buffer_frames", "camera_buffer_mb"};
+  return keys;
+}
+
 void readStringParam(const ros::NodeHandle& nh, const std::string& name, std::string* value) {
   std::vector<std::string> known;
   readParam(nh, name, *value, &known);

@@ -29,9 +29,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void initialize(const std::string& name, ros::NodeHandle& nh, const std::string& map_frame) override {
     name_ = name;
     map_frame_ = map_frame;
-    estimator_ = std::make_unique<planner::SuperellipsoidEstimator>(ros_io::readEstimatorParams(
-        nh, {"superellipsoids_topic", "fruit_cloud_topic", "camera_cloud_topic", "camera_pair_tolerance",
-             "camera_buffer_frames", "camera_buffer_mb"}));
+    estimator_ = std::make_unique<planner::SuperellipsoidEstimator>(ros_io::readEstimatorParams(nh, ros_io::pluginInputKeys()));
     std::string superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic, fruit_cloud_topic;
     std::string camera_topic = "/camera/depth/points";
     int buffer_frames = 16, buffer_mb = 160;

@@ -22,8 +22,10 @@ int main(int argc, char** argv) {
   pnh.param("map_frame", map_frame, map_frame);
   std::unique_ptr<FruitShapePipeline> pipeline;
   try {
-    // Fit parameters as for the plugin, from ~superellipsoid/ (config/shape_estimators.yaml).
-    pipeline = std::make_unique<FruitShapePipeline>(ros_io::readEstimatorParams(ros::NodeHandle(pnh, "superellipsoid")).pipeline);
+    // Fit parameters as for the plugin, from ~superellipsoid/ (config/shape_estimators.yaml); the
+    // plugin's input topics there do not apply to a node fed surface clouds.
+    pipeline = std::make_unique<FruitShapePipeline>(
+        ros_io::readEstimatorParams(ros::NodeHandle(pnh, "superellipsoid"), ros_io::pluginInputKeys()).pipeline);
   } catch (const std::exception& e) {
     ROS_FATAL("%s", e.what());
     return 1;

@@ -13,6 +13,10 @@
 namespace fruit_shape_completion {
 namespace ros_io {
 
+// The plugin's own keys in the same namespace (topics and the camera frame buffer). Nodes that
+// share config/shape_estimators.yaml but have no such inputs accept and ignore them.
+const std::vector<std::string>& pluginInputKeys();
+
 planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
                                                            const std::vector<std::string>& other_keys = {});
 
