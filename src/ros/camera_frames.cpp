@@ -1,5 +1,8 @@
 #include <fruit_shape_completion/ros/camera_frames.h>
 
+#include <algorithm>
+#include <chrono>
+
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -107,11 +110,21 @@ CameraFrameBuffer::Push CameraFrameBuffer::push(const sensor_msgs::PointCloud2Co
     frames_.pop_front();
     ++evicted_;
   }
+  pushed_.notify_all();
   return result;
 }
 
-sensor_msgs::PointCloud2ConstPtr CameraFrameBuffer::take(const ros::Time& stamp, double tolerance) {
-  std::lock_guard<std::mutex> lock(mutex_);
+sensor_msgs::PointCloud2ConstPtr CameraFrameBuffer::take(const ros::Time& stamp, double tolerance, double wait) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  sensor_msgs::PointCloud2ConstPtr frame = takeLocked(stamp, tolerance);
+  if (frame || !(wait > 0.0)) return frame;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(std::min(wait, 10.0));
+  while (!frame && newest_ < stamp && pushed_.wait_until(lock, until) != std::cv_status::timeout)
+    frame = takeLocked(stamp, tolerance);
+  return frame ? frame : takeLocked(stamp, tolerance);
+}
+
+sensor_msgs::PointCloud2ConstPtr CameraFrameBuffer::takeLocked(const ros::Time& stamp, double tolerance) {
   std::size_t best = frames_.size();
   double best_gap = tolerance;
   for (std::size_t i = 0; i < frames_.size(); ++i) {
@@ -131,6 +144,7 @@ void CameraFrameBuffer::clear() {
   std::lock_guard<std::mutex> lock(mutex_);
   frames_.clear();
   newest_ = ros::Time();
+  pushed_.notify_all();
 }
 
 std::size_t CameraFrameBuffer::size() const {

@@ -4,14 +4,23 @@
 // the camera on tf (map frame -> camera), the ROI octree (~roi_octree) and the Old boxes
 // (~old_boxes) as markers, and the last full cloud (~scene_cloud). With ~live:=true it instead
 // takes fruit clouds (sensor_msgs/PointCloud2 on ~fruit_cloud) with the sensor pose from tf.
+// With ~publish_sensors:=true it also publishes, per view, what a robot's stack publishes: the
+// organized camera cloud (~camera_cloud_topic, as depth_image_proc), tf at its stamp, and
+// pointcloud_roi's PointcloudWithRoi (~roi_topic), so planner hosts in other processes (the
+// patched planner, fruit_mapping_node) get the episode through subscriptions; ~episode_done
+// (latched) carries the number of views when the episode has ended.
+#include <fruit_shape_completion/planner/pointcloud_roi.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/ros/camera_frames.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/shape_estimator_loader.h>
+#include <fruit_shape_completion/ros/upstream_messages.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
 
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
+#include <std_msgs/UInt32.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
@@ -89,7 +98,8 @@ int main(int argc, char** argv) {
   std::string map_frame = "world", scene_spec = "procedural", sensor_frame = "camera";
   double duration = 180.0, realtime_factor = 0.0;
   int seed = 1;
-  bool shape_targets = true, live = false, exit_when_done = false;
+  bool shape_targets = true, live = false, exit_when_done = false, publish_sensors = false;
+  std::string input_name = "camera", camera_topic = "/camera/depth/points", roi_topic = ros_io::kUpstreamRoiTopic;
   pnh.param("map_frame", map_frame, map_frame);
   pnh.param("scene", scene_spec, scene_spec);
   pnh.param("duration", duration, duration);
@@ -99,6 +109,15 @@ int main(int argc, char** argv) {
   pnh.param("live", live, live);
   pnh.param("sensor_frame", sensor_frame, sensor_frame);
   pnh.param("exit_when_done", exit_when_done, exit_when_done);
+  pnh.param("input", input_name, input_name);
+  pnh.param("publish_sensors", publish_sensors, publish_sensors);
+  pnh.param("camera_cloud_topic", camera_topic, camera_topic);
+  pnh.param("roi_topic", roi_topic, roi_topic);
+  planner::PlannerParams::Input input = planner::PlannerParams::Input::kCamera;
+  if (!planner::parseInput(input_name, &input)) {
+    ROS_FATAL("~input must be camera, roi or fruit-cloud, not '%s'", input_name.c_str());
+    return 1;
+  }
   std::string profile = "paper";
   pnh.param("profile", profile, profile);
   if (profile != "paper" && profile != "ideal") {
@@ -178,23 +197,40 @@ int main(int argc, char** argv) {
   params.seed = static_cast<unsigned>(seed);
   params.shape_targets = shape_targets;
   params.render_threads = 2;
+  params.input = input;
+  sim::RedThreshold red_test;  // pointcloud_roi's colour test, as the episode's profile has it
+  if (params.upstream_red_test) red_test.test = sim::RedThreshold::Test::kUpstream;
+  ros::Publisher camera_pub, roi_pub, done_pub = pnh.advertise<std_msgs::UInt32>("episode_done", 1, true);
+  if (publish_sensors) {
+    camera_pub = pnh.advertise<sensor_msgs::PointCloud2>(camera_topic, 2);
+    roi_pub = ros_io::advertiseUpstreamPointcloudWithRoi(pnh, roi_topic, 2);
+    // A robot's camera streams before the planner's first view; here the first view is the
+    // first frame, so give subscribers a moment to connect to both topics.
+    const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(10.0);
+    while (ros::ok() && ros::WallTime::now() < until &&
+           (camera_pub.getNumSubscribers() == 0 || roi_pub.getNumSubscribers() == 0))
+      ros::WallDuration(0.05).sleep();
+  }
   ROS_INFO("planning on %s (%zu red ground-truth fruits scored) for %.0f s", scene.name.c_str(), truth.enclosed.size(), duration);
   const auto result = planner::runEpisode(scene, renderer, truth, host, params,
       [&](const planner::ViewRecord& v, const planner::RoiOcTree& tree, const sim::RgbdFrame& frame, const planner::ViewData&) {
-        const PinholeCamera& cam = frame.camera;
-        geometry_msgs::TransformStamped t;
-        t.header.stamp = ros::Time::now();
+        // The camera on tf at the frame's stamp: z forward, as the organized cloud's points.
+        const ros::Time stamp = ros::Time::now();
+        geometry_msgs::TransformStamped t = tf2::eigenToTransform(sim::cameraPose(frame.camera));
+        t.header.stamp = stamp;
         t.header.frame_id = map_frame;
-        t.child_frame_id = "camera";
-        t.transform.translation.x = cam.position.x();
-        t.transform.translation.y = cam.position.y();
-        t.transform.translation.z = cam.position.z();
-        const Eigen::Quaterniond q(cam.rotation);
-        t.transform.rotation.x = q.x();
-        t.transform.rotation.y = q.y();
-        t.transform.rotation.z = q.z();
-        t.transform.rotation.w = q.w();
+        t.child_frame_id = sensor_frame;
         tf.sendTransform(t);
+        if (publish_sensors) {
+          camera_pub.publish(ros_io::toOrganizedCloud(sim::organizedFrame(frame), sensor_frame, stamp));
+          // pointcloud_roi publishes after its own processing of the same frame.
+          const planner::RoiCloud roi = planner::pointcloudRoi(frame, params.roi_leaf, red_test);
+          fruit_shape_completion::PointcloudWithRoi msg;
+          msg.cloud = ros_io::toCloud(roi.points, map_frame, stamp, roi.colours);
+          msg.roi_indices = roi.roi_indices;
+          msg.transform = t.transform;
+          roi_pub.publish(msg);
+        }
         octree_pub.publish(octreeMarkers(tree, map_frame));
         boxes_pub.publish(boxMarkers(tree.roiClusters(10), map_frame));
         cloud_pub.publish(ros_io::toCloud(sim::cloudsFromFrame(frame, {}).full, map_frame, ros::Time::now()));
@@ -209,6 +245,9 @@ int main(int argc, char** argv) {
   if (result.dropped_views > 0)
     ROS_WARN("%d views dropped, the first: %s", result.dropped_views, result.dropped_reason.c_str());
   ROS_INFO("episode done: %zu views", result.views.size());
+  std_msgs::UInt32 done;
+  done.data = static_cast<std::uint32_t>(result.views.size());
+  done_pub.publish(done);
   if (!exit_when_done) ros::spin();
   return 0;
 }

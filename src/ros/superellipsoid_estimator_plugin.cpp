@@ -172,7 +172,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       ++no_frame_;
       return false;
     }
-    const sensor_msgs::PointCloud2ConstPtr msg = camera_buffer_->take(ros::Time(stamp), pair_tolerance_);
+    const sensor_msgs::PointCloud2ConstPtr msg =
+        camera_buffer_->take(ros::Time(stamp), pair_tolerance_,
+                            frames_received_ > 0 || camera_.getNumPublishers() > 0 ? kFrameWait : 0.0);
     if (!msg) {
       *why = frames_received_ == 0 ? "nothing received on the camera topic"
                                    : "no camera frame within " + std::to_string(pair_tolerance_) + " s of the view";
@@ -301,6 +303,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   ros::Subscriber fruit_cloud_;
   // The camera input (camera_cloud_topic).
   static constexpr double kStandaloneAfter = 5.0;  // [s] without a planner view: frames taken at rest
+  // [s] a view built from a frame (pointcloud_roi) may overtake the frame on another connection
+  static constexpr double kFrameWait = 0.05;
   double pair_tolerance_ = 0.05;                   // [s] view stamp to frame stamp
   std::unique_ptr<ros_io::CameraFrameBuffer> camera_buffer_;
   ros::Subscriber camera_;

@@ -35,6 +35,14 @@ ros::Publisher advertiseUpstreamSuperellipsoids(ros::NodeHandle& nh, const std::
   return nh.advertise(options);
 }
 
+ros::Publisher advertiseUpstreamPointcloudWithRoi(ros::NodeHandle& nh, const std::string& topic, std::uint32_t queue_size) {
+  ros::AdvertiseOptions options;
+  options.init<fruit_shape_completion::PointcloudWithRoi>(topic, queue_size);
+  options.datatype = kUpstreamPointcloudWithRoiType;
+  options.message_definition = upstreamPointcloudWithRoiDefinition();
+  return nh.advertise(options);
+}
+
 ros::Subscriber subscribeUpstreamPointcloudWithRoi(
     ros::NodeHandle& nh, const std::string& topic, std::uint32_t queue_size,
     const boost::function<void(const fruit_shape_completion::PointcloudWithRoiConstPtr&)>& callback) {

@@ -11,7 +11,9 @@
 #include <fruit_shape_completion/tsdf_surface.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstring>
+#include <thread>
 
 using namespace fruit_shape_completion;
 
@@ -139,4 +141,26 @@ TEST(CameraFrameBuffer, PairsTheNearestFrameWithinTheToleranceAndStaysBounded) {
   EXPECT_EQ(buffer.push(cloudAt(0.5)), ros_io::CameraFrameBuffer::Push::kClockJumpedBack);
   EXPECT_EQ(buffer.size(), 1u);
   EXPECT_NE(buffer.take(ros::Time(0.5), 0.0), nullptr);
+}
+
+// A view made from a frame (pointcloud_roi's output) can arrive before the frame itself: the
+// buffer waits briefly for it, and does not wait once a newer frame shows none will pair.
+TEST(CameraFrameBuffer, WaitsBrieflyForAFrameThatHasNotArrivedYet) {
+  ros_io::CameraFrameBuffer buffer(4, 1 << 20);
+  buffer.push(cloudAt(1.0));
+  std::thread camera([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    buffer.push(cloudAt(2.0));
+  });
+  const auto f = buffer.take(ros::Time(2.0), 0.01, 2.0);
+  camera.join();
+  ASSERT_NE(f, nullptr);
+  EXPECT_DOUBLE_EQ(f->header.stamp.toSec(), 2.0);
+  // A newer frame is there already: no frame within the tolerance returns at once, no wait.
+  buffer.push(cloudAt(3.0));
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(buffer.take(ros::Time(2.5), 0.01, 5.0), nullptr);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
+  // Without a wait, a missing frame is missing.
+  EXPECT_EQ(buffer.take(ros::Time(4.0), 0.01), nullptr);
 }

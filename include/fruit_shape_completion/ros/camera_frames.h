@@ -8,6 +8,7 @@
 #include <ros/time.h>
 #include <sensor_msgs/PointCloud2.h>
 
+#include <condition_variable>
 #include <cstddef>
 #include <deque>
 #include <mutex>
@@ -33,8 +34,10 @@ class CameraFrameBuffer {
   // was cleared and holds only this frame. kTooLarge: one frame exceeds max_bytes, not stored.
   Push push(const sensor_msgs::PointCloud2ConstPtr& cloud);
   // The frame nearest `stamp` within `tolerance` (nullptr if none); it and older frames leave
-  // the buffer (a view is never paired with an earlier frame after a later one).
-  sensor_msgs::PointCloud2ConstPtr take(const ros::Time& stamp, double tolerance);
+  // the buffer (a view is never paired with an earlier frame after a later one). While no frame
+  // newer than `stamp` has arrived, waits up to `wait` seconds (wall time) for one: a view
+  // derived from a frame can overtake that frame on another connection.
+  sensor_msgs::PointCloud2ConstPtr take(const ros::Time& stamp, double tolerance, double wait = 0.0);
   void clear();
   std::size_t size() const;
   std::size_t evicted() const;  // frames pushed out by the bounds before any view took them
@@ -42,7 +45,9 @@ class CameraFrameBuffer {
  private:
   std::size_t bytesLocked() const;
   const std::size_t max_frames_, max_bytes_;
+  sensor_msgs::PointCloud2ConstPtr takeLocked(const ros::Time& stamp, double tolerance);
   mutable std::mutex mutex_;
+  std::condition_variable pushed_;
   std::deque<sensor_msgs::PointCloud2ConstPtr> frames_;  // oldest first
   std::size_t evicted_ = 0;
   ros::Time newest_;  // the newest stamp pushed, taken frames included

@@ -29,6 +29,10 @@ std::string upstreamPointcloudWithRoiDefinition();
 // superellipsoid_msgs/SuperellipsoidArray.
 ros::Publisher advertiseUpstreamSuperellipsoids(ros::NodeHandle& nh, const std::string& topic, bool latch);
 
+// A publisher of fruit_shape_completion::PointcloudWithRoi advertised as
+// pointcloud_roi_msgs/PointcloudWithRoi (what pointcloud_roi publishes).
+ros::Publisher advertiseUpstreamPointcloudWithRoi(ros::NodeHandle& nh, const std::string& topic, std::uint32_t queue_size);
+
 // A subscriber to pointcloud_roi_msgs/PointcloudWithRoi delivering this package's twin type.
 ros::Subscriber subscribeUpstreamPointcloudWithRoi(
     ros::NodeHandle& nh, const std::string& topic, std::uint32_t queue_size,
