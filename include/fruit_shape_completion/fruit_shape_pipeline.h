@@ -11,6 +11,7 @@
 #include <fruit_shape_completion/superellipsoid_fit.h>
 #include <fruit_shape_completion/surface_normals.h>
 
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <unordered_set>
@@ -47,8 +48,10 @@ class FruitShapePipeline {
   explicit FruitShapePipeline(const PipelineParams& params = PipelineParams());
 
   // Processes a new surface cloud (the whole current fruit surface, not a delta) and returns
-  // all fruits, accepted or not, largest cluster first.
-  const std::vector<FruitEstimate>& update(const PointList& surface_cloud);
+  // all fruits, accepted or not, largest cluster first. If `cancel` becomes true it returns
+  // between two clusters with the previous update's fruits and tracks unchanged.
+  const std::vector<FruitEstimate>& update(const PointList& surface_cloud,
+                                           const std::atomic<bool>* cancel = nullptr);
 
   const std::vector<FruitEstimate>& fruits() const { return fruits_; }
   const PipelineStats& lastStats() const { return stats_; }

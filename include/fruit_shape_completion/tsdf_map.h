@@ -119,8 +119,11 @@ class TsdfMap {
     for (const auto& kb : blocks_) fn(*kb.second);
   }
 
-  // Binary file: the observed voxels only. load() leaves the map unchanged on error.
+  // Binary file: the observed voxels only, written atomically (atomic_file.h). load() leaves
+  // the map unchanged on error.
   bool save(const std::string& path, std::string* error) const;
+  // The file's bytes (for a caller that copies under a lock and writes outside it).
+  void serialize(std::string* bytes) const;
   bool load(const std::string& path, std::string* error);
 
  private:

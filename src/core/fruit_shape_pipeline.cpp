@@ -205,7 +205,8 @@ std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWit
   return parts;
 }
 
-const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& surface_cloud) {
+const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& surface_cloud,
+                                                             const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
   stats_ = PipelineStats();
   stats_.input_points = static_cast<int>(surface_cloud.size());
@@ -227,6 +228,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
   std::vector<Track> pending;   // fruits fitted now, ids still to assign
   std::vector<char> reused(tracks_.size(), 0);
   for (const auto& cluster : clusters) {
+    if (cancel && cancel->load()) return fruits_;
     PointList pts;
     pts.reserve(cluster.size());
     for (int i : cluster) pts.push_back(finite[i]);

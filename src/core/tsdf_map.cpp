@@ -1,4 +1,5 @@
 #include <fruit_shape_completion/tsdf_map.h>
+#include <fruit_shape_completion/atomic_file.h>
 
 #include <algorithm>
 #include <cmath>
@@ -150,16 +151,16 @@ void TsdfMap::clear() {
   cached_block_ = nullptr;
 }
 
-bool TsdfMap::save(const std::string& path, std::string* error) const {
-  std::ofstream out(path, std::ios::binary);
-  if (!out) {
-    if (error) *error = path + ": cannot open for writing";
-    return false;
-  }
-  auto put = [&out](const void* p, std::size_t n) { out.write(static_cast<const char*>(p), n); };
+void TsdfMap::serialize(std::string* bytes) const {
+  std::string& out = *bytes;
+  out.clear();
+  auto put = [&out](const void* p, std::size_t n) { out.append(static_cast<const char*>(p), n); };
   const std::uint32_t version = 1;
   const std::uint32_t vps = params_.voxels_per_side;
   const std::uint64_t count = blocks_.size();
+  std::size_t observed = 0;
+  for (const auto& kb : blocks_) observed += kb.second->observedCount();
+  out.reserve(32 + blocks_.size() * 28 + observed * 12);
   put(kMagic, 8);
   put(&version, 4);
   put(&params_.voxel_size, 8);
@@ -177,11 +178,12 @@ bool TsdfMap::save(const std::string& path, std::string* error) const {
       put(&b.voxels[idx].weight, 4);
     });
   }
-  if (!out) {
-    if (error) *error = path + ": write error";
-    return false;
-  }
-  return true;
+}
+
+bool TsdfMap::save(const std::string& path, std::string* error) const {
+  std::string bytes;
+  serialize(&bytes);
+  return writeFileAtomically(path, bytes, error);
 }
 
 bool TsdfMap::load(const std::string& path, std::string* error) {

@@ -1,5 +1,7 @@
 #include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/planner/update_worker.h>
 
+#include <chrono>
 #include <iostream>
 #include <new>
 #include <stdexcept>
@@ -7,17 +9,38 @@
 namespace fruit_shape_completion {
 namespace planner {
 
-ShapeEstimatorHost::ShapeEstimatorHost(Reporter report_error) : report_error_(std::move(report_error)) {
+ShapeEstimatorHost::ShapeEstimatorHost(Reporter report_error, Updates updates)
+    : report_error_(std::move(report_error)), updates_(updates) {
   if (!report_error_) report_error_ = [](const std::string& msg) { std::cerr << msg << "\n"; };
+}
+
+ShapeEstimatorHost::~ShapeEstimatorHost() {
+  std::vector<UpdateWorker*> workers;
+  std::vector<ShapeEstimator*> estimators;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& w : workers_) workers.push_back(w.get());
+    for (auto& e : estimators_) estimators.push_back(e.get());
+  }
+  for (auto* e : estimators) {
+    try {
+      e->cancelUpdate();
+    } catch (...) {  // going away regardless
+    }
+  }
+  for (auto* w : workers) w->stop();
 }
 
 void ShapeEstimatorHost::add(std::unique_ptr<ShapeEstimator> estimator) {
   if (!estimator) return;
   std::lock_guard<std::mutex> lock(mutex_);
+  const std::size_t i = estimators_.size();
   estimators_.push_back(std::move(estimator));
   enabled_.push_back(1);
   last_error_.emplace_back();
   out_of_memory_.push_back(0);
+  if (updates_ == Updates::kBackground)
+    workers_.push_back(std::make_unique<UpdateWorker>([this, i] { guarded(i, [](ShapeEstimator& e) { e.update(); }); }));
 }
 
 std::size_t ShapeEstimatorHost::size() const {
@@ -107,11 +130,55 @@ bool ShapeEstimatorHost::guarded(std::size_t i, Call&& call) const {
 }
 
 void ShapeEstimatorHost::onView(const ViewData& view) {
+  if (updates_ == Updates::kBackground) {
+    insertView(view);
+    requestUpdate();
+    return;
+  }
   for (std::size_t i = 0, n = size(); i < n; ++i)
     guarded(i, [&](ShapeEstimator& e) {
       e.insertView(view);
       e.update();
     });
+}
+
+void ShapeEstimatorHost::requestUpdate() {
+  if (updates_ == Updates::kInline) {
+    update();
+    return;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (std::size_t i = 0; i < workers_.size(); ++i)
+    if (enabled_[i]) workers_[i]->request();
+}
+
+bool ShapeEstimatorHost::waitForUpdates(double timeout) const {
+  std::vector<UpdateWorker*> workers;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& w : workers_) workers.push_back(w.get());
+  }
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout);
+  for (auto* w : workers)
+    if (!w->waitIdle(std::chrono::duration<double>(until - std::chrono::steady_clock::now()).count())) return false;
+  return true;
+}
+
+ShapeEstimatorHost::UpdateStatus ShapeEstimatorHost::updateStatus(std::size_t i) const {
+  UpdateWorker* w = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (i < workers_.size()) w = workers_[i].get();
+  }
+  UpdateStatus out;
+  if (!w) return out;
+  const UpdateWorker::Status s = w->status();
+  out.runs = s.runs;
+  out.coalesced = s.coalesced;
+  out.last_seconds = s.last_seconds;
+  out.age_seconds = s.age_seconds;
+  out.running = s.running;
+  return out;
 }
 
 void ShapeEstimatorHost::insertView(const ViewData& view) {

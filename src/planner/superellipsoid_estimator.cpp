@@ -1,5 +1,7 @@
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 
+#include <fruit_shape_completion/atomic_file.h>
+
 #include <chrono>
 
 namespace fruit_shape_completion {
@@ -90,7 +92,9 @@ void SuperellipsoidEstimator::update() {
   }
   // The fit runs on the surface copy, with the map free for new views and the last results
   // free for queries.
-  pipeline_.update(surface);
+  if (cancel_) return;
+  pipeline_.update(surface, &cancel_);
+  if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
   std::vector<FruitEstimate> estimates = pipeline_.fruits();
   PointList targets;
   if (params_.publish_targets)
@@ -118,7 +122,12 @@ PointList SuperellipsoidEstimator::extraTargets() const {
 }
 
 void SuperellipsoidEstimator::reset() {
+  // A running fit returns at its next cluster instead of finishing; unless the estimator is
+  // being destroyed (cancelUpdate), fits resume after the reset.
+  ++resets_waiting_;
+  cancel_ = true;
   std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  if (--resets_waiting_ == 0 && !stopping_) cancel_ = false;
   std::lock_guard<std::mutex> map_lock(map_mutex_);
   std::lock_guard<std::mutex> lock(results_mutex_);
   map_.clear();
@@ -133,9 +142,18 @@ void SuperellipsoidEstimator::reset() {
   stats_ = PipelineStats();
 }
 
+void SuperellipsoidEstimator::cancelUpdate() {
+  stopping_ = true;
+  cancel_ = true;
+}
+
 bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error) const {
-  std::lock_guard<std::mutex> lock(map_mutex_);
-  return map_.save(path, error);
+  std::string bytes;
+  {
+    std::lock_guard<std::mutex> lock(map_mutex_);
+    map_.serialize(&bytes);
+  }
+  return writeFileAtomically(path, bytes, error);
 }
 
 bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* error) {

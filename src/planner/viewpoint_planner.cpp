@@ -194,6 +194,13 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   RoiOcTree tree(p.octree_resolution);
   Eigen::Vector3d pos = scene.camera_start_position, look = scene.camera_start_look_at;
   double t = 0.0, last_update = -1e300;
+  // The estimators' results as the planner sees them, and a fit still running (in simulated time).
+  struct FitResults {
+    std::vector<FruitEstimate> fruits;
+    PointList targets;
+  } visible, fit;
+  bool fit_pending = false;
+  double fit_ready = -1e300;
   sim::RedThreshold red_test;
   if (p.upstream_red_test) red_test.test = sim::RedThreshold::Test::kUpstream;
   // What the mask should find: fruit materials whose colour is red (the paper scores red fruit).
@@ -332,15 +339,34 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         }
         known = sim::DistanceField::ofPoints(occupied, p.arm_map_resolution, 0.2);
       }
-      if (p.estimator_period <= 0.0) {
-        host.onView(given);
-      } else {
-        host.insertView(given);
-        if (t - last_update >= p.estimator_period) {
-          host.update();
-          last_update = t;
-        }
+      // The planner blocks only on insertView; the fit runs beside it (as the plugin's worker
+      // does). Its results reach the planner at the simulated time they would be ready, the
+      // fit's start plus its measured duration, and one fit runs at a time: views during a fit
+      // wait for the next one.
+      double fit_wall = 0.0;  // [s] measured here, but not the planner's time
+      auto clockNow = [&] {
+        if (!p.charge_compute_time) return t;
+        return t + std::chrono::duration<double>(std::chrono::steady_clock::now() - compute0).count() - fit_wall;
+      };
+      host.insertView(given);
+      if (clockNow() >= fit_ready && t - last_update >= p.estimator_period) {
+        const double start = clockNow();
+        const auto fit0 = std::chrono::steady_clock::now();
+        host.update();
+        fit.fruits = host.fruits(0);
+        fit.targets = p.shape_targets ? host.extraTargets() : PointList();
+        fit_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - fit0).count();
+        fit_ready = start + (p.charge_compute_time ? fit_wall : 0.0);
+        fit_pending = true;
+        last_update = t;
       }
+      auto visibleNow = [&]() -> const FitResults& {
+        if (fit_pending && clockNow() >= fit_ready) {
+          visible = std::move(fit);
+          fit_pending = false;
+        }
+        return visible;
+      };
 
       ViewRecord rec;
       rec.view = view;
@@ -349,7 +375,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       std::vector<FruitEstimate> old_fruits, se_fruits;
       for (const auto& c : tree.roiClusters(10)) old_fruits.push_back(FruitEstimate::ofBox(c.center(), c.volume()));
       old_fruits = truth.scoredEstimates(std::move(old_fruits));
-      se_fruits = truth.scoredEstimates(host.fruits(0));
+      se_fruits = truth.scoredEstimates(visibleNow().fruits);
       rec.old_true = evaluate(old_fruits, truth.enclosed);
       rec.se_true = evaluate(se_fruits, truth.enclosed);
       rec.old_se = evaluate(old_fruits, truth.se);
@@ -361,7 +387,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       PointList targets = tree.roiContourTargets();
       rec.contour_targets = static_cast<int>(targets.size());
       if (p.shape_targets) {
-        const PointList extra = host.extraTargets();
+        const PointList& extra = visibleNow().targets;
         rec.shape_targets = static_cast<int>(extra.size());
         targets.insert(targets.end(), extra.begin(), extra.end());
       }
@@ -436,7 +462,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       rec.gain = best_gain;
       const auto done = std::chrono::steady_clock::now();
       rec.wall_ms = std::chrono::duration<double, std::milli>(done - wall0).count();
-      rec.compute_ms = std::chrono::duration<double, std::milli>(done - compute0).count();
+      rec.compute_ms = std::chrono::duration<double, std::milli>(done - compute0).count() - 1e3 * fit_wall;
+      rec.fit_ms = 1e3 * fit_wall;
       if (p.charge_compute_time) t += rec.compute_ms / 1000.0;
       result.views.push_back(rec);
       if (on_view && !on_view(rec, tree, frame, given)) {

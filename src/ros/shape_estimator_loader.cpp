@@ -10,7 +10,8 @@ namespace ros_io {
 
 ShapeEstimatorLoader::ShapeEstimatorLoader()
     : loader_("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin"),
-      host_([](const std::string& msg) { ROS_ERROR("%s", msg.c_str()); }) {}
+      host_([](const std::string& msg) { ROS_ERROR("%s", msg.c_str()); },
+            planner::ShapeEstimatorHost::Updates::kBackground) {}
 
 void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame) {
   XmlRpc::XmlRpcValue list;
@@ -59,6 +60,12 @@ void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::Diagnosti
     for (const auto& kv : plugins_[i]->diagnostics()) status.add(kv.first, kv.second);
     const std::size_t oom = host_.outOfMemoryDrops(i);
     status.add("views dropped out of memory", oom);
+    const planner::ShapeEstimatorHost::UpdateStatus fit = host_.updateStatus(i);
+    status.add("fits run beside the planner", fit.runs);
+    status.add("view updates coalesced into a later fit", fit.coalesced);
+    status.add("last fit duration [ms]", 1e3 * fit.last_seconds);
+    status.add("seconds since the last fit finished", fit.age_seconds < 0 ? std::string("never") : std::to_string(fit.age_seconds));
+    status.add("fit running", fit.running ? "yes" : "no");
     if (oom > 0) status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; " + host_.lastError(i));
     else status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
   } catch (const std::exception& e) {

@@ -5,6 +5,7 @@
 // (full resolution, the whole fruit input stage) instead of the view's 1 cm cloud.
 #include <fruit_shape_completion/FilePath.h>
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/planner/update_worker.h>
 #include <fruit_shape_completion/ros/camera_frames.h>
 #include <fruit_shape_completion/ros/estimator_params.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
@@ -26,6 +27,16 @@ namespace fruit_shape_completion {
 
 class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
  public:
+  ~SuperellipsoidEstimatorPlugin() override {
+    // No callback may start a view or a fit once the estimator is on its way out.
+    camera_.shutdown();
+    fruit_cloud_.shutdown();
+    clear_.shutdown();
+    save_.shutdown();
+    load_.shutdown();
+    if (estimator_) estimator_->cancelUpdate();
+    own_updates_.reset();
+  }
   void initialize(const std::string& name, ros::NodeHandle& nh, const std::string& map_frame) override {
     name_ = name;
     map_frame_ = map_frame;
@@ -46,6 +57,15 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     if (buffer_mb < 1 || buffer_mb > 65536)
       throw std::runtime_error("parameter '" + nh.resolveName("camera_buffer_mb") + "' must be in [1, 65536] MiB");
     publisher_ = std::make_unique<ros_io::FruitPublisher>(nh, map_frame, superellipsoids_topic);
+    // Fits the plugin starts itself (fruit clouds, a camera at rest, a loaded map) run here,
+    // never in a subscriber's or a service's callback.
+    own_updates_ = std::make_unique<planner::UpdateWorker>([this] {
+      try {
+        update();
+      } catch (const std::exception& e) {  // std::bad_alloc among them: keep the last results
+        ROS_ERROR_THROTTLE(10.0, "%s: update failed, the last results kept: %s", name_.c_str(), e.what());
+      }
+    });
     clear_ = nh.advertiseService("clear_map", &SuperellipsoidEstimatorPlugin::clearMap, this);
     save_ = nh.advertiseService("save_map", &SuperellipsoidEstimatorPlugin::saveMap, this);
     load_ = nh.advertiseService("load_map", &SuperellipsoidEstimatorPlugin::loadMap, this);
@@ -88,14 +108,21 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void update() override {
     check();
     estimator_->update();
+    // Read and publish in one step with reset(): a fit that a reset overtook publishes the
+    // cleared state, never its own.
+    std::lock_guard<std::mutex> lock(publish_mutex_);
     last_update_ = ros::WallTime::now().toSec();
     publisher_->publish(estimator_->estimates(), estimator_->surface(), ros::Time::now());
+  }
+  void cancelUpdate() override {
+    if (estimator_) estimator_->cancelUpdate();
   }
   std::vector<FruitEstimate> fruits() const override { return check(), estimator_->fruits(); }
   PointList extraTargets() const override { return check(), estimator_->extraTargets(); }
   void reset() override {
     check();
     if (camera_buffer_) camera_buffer_->clear();
+    std::lock_guard<std::mutex> lock(publish_mutex_);
     estimator_->reset();
     publisher_->publish({}, {}, ros::Time::now());
   }
@@ -157,7 +184,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
           tf_buffer_->lookupTransform(map_frame_, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2)));
       for (auto& p : points) p = sensor_to_map * p;
       integrate({points, points, sensor_to_map, msg->header.stamp.toSec(), planner::ViewSource::kFruitCloud});
-      update();
+      own_updates_->request();
     } catch (const tf2::TransformException& e) {
       ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: no transform to %s (%s)", name_.c_str(), map_frame_.c_str(), e.what());
     } catch (const std::exception& e) {  // std::bad_alloc among them: drop this cloud, keep running
@@ -261,7 +288,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       ROS_WARN_THROTTLE(10.0, "%s: still camera frame not used: %s", name_.c_str(), why.c_str());
       return;
     }
-    update();
+    own_updates_->request();
   }
   bool clearMap(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
     reset();
@@ -277,7 +304,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   bool loadMap(FilePath::Request& req, FilePath::Response& res) {
     std::string error;
     res.success = estimator_->loadMap(req.file_path, &error);
-    if (res.success) update();
+    if (res.success) own_updates_->request();
     res.message = res.success ? "loaded " + req.file_path : error;
     return true;
   }
@@ -297,6 +324,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::unique_ptr<planner::SuperellipsoidEstimator> estimator_;
   std::unique_ptr<ros_io::FruitPublisher> publisher_;
   std::atomic<double> last_update_{0.0};  // wall time of the last update [s]
+  std::mutex publish_mutex_;  // orders publishing after an update with a reset's
+  std::unique_ptr<planner::UpdateWorker> own_updates_;
   ros::ServiceServer clear_, save_, load_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

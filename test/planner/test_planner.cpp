@@ -1,4 +1,5 @@
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/planner/update_worker.h>
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
@@ -6,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <condition_variable>
+#include <functional>
 #include <cmath>
 #include <cstdlib>
 #include <new>
@@ -548,4 +551,179 @@ TEST(ShapeEstimatorHost, ConcurrentViewsQueriesResetsAndThrowingEstimators) {
   ASSERT_EQ(fruits.size(), 1u);
   EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.15 * truth.volume());
   EXPECT_LT((fruits[0].center() - truth.t).norm(), 0.01);
+}
+
+// ---------------------------------------------------------------- fits beside the planner
+
+namespace {
+
+// An estimator whose update() holds until the test opens a gate (or it is cancelled), counting
+// what it was asked: a fit as slow as the test wants.
+class GatedEstimator : public ShapeEstimator {
+ public:
+  std::string name() const override { return "gated"; }
+  void insertView(const ViewData&) override { ++inserts; }
+  void update() override {
+    ++started;
+    std::unique_lock<std::mutex> lock(mutex_);
+    opened_.wait_for(lock, std::chrono::seconds(20), [this] { return open_ || cancelled_; });
+    if (cancelled_) return;
+    ++finished;
+    if (throw_in_update) throw std::runtime_error("fit failed on purpose");
+    if (oom_in_update) throw std::bad_alloc();
+  }
+  std::vector<FruitEstimate> fruits() const override { return {}; }
+  PointList extraTargets() const override { return {}; }
+  void reset() override {}
+  void cancelUpdate() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    cancelled_ = true;
+    opened_.notify_all();
+  }
+  void open() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    open_ = true;
+    opened_.notify_all();
+  }
+  std::atomic<int> inserts{0}, started{0}, finished{0};
+  std::atomic<bool> throw_in_update{false}, oom_in_update{false};
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable opened_;
+  bool open_ = false, cancelled_ = false;
+};
+
+bool waitUntil(const std::function<bool()>& pred, double seconds) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (!pred() && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  return pred();
+}
+
+}  // namespace
+
+TEST(UpdateWorker, RequestsDuringARunCoalesceIntoOneMoreRun) {
+  std::mutex gate;
+  gate.lock();
+  std::atomic<int> runs{0};
+  UpdateWorker worker([&] {
+    std::lock_guard<std::mutex> wait(gate);
+    ++runs;
+  });
+  worker.request();
+  ASSERT_TRUE(waitUntil([&] { return worker.status().running; }, 5.0));
+  for (int i = 0; i < 10; ++i) worker.request();  // while the first run holds
+  gate.unlock();
+  ASSERT_TRUE(worker.waitIdle(5.0));
+  EXPECT_EQ(runs.load(), 2);  // the first, and one for the ten requests
+  EXPECT_EQ(worker.status().coalesced, 9u);
+  EXPECT_EQ(worker.status().runs, 2u);
+  worker.stop();
+  worker.request();  // after stop: ignored, no run
+  EXPECT_EQ(runs.load(), 2);
+}
+
+TEST(ShapeEstimatorHost, BackgroundViewsReturnBeforeTheFitWhichRunsOnTheNewestMap) {
+  ShapeEstimatorHost host(nullptr, ShapeEstimatorHost::Updates::kBackground);
+  auto owned = std::make_unique<GatedEstimator>();
+  GatedEstimator& e = *owned;
+  host.add(std::move(owned));
+  const PointList none;
+  host.onView(ViewData{none, none, Eigen::Isometry3d::Identity(), 0.0});
+  ASSERT_TRUE(waitUntil([&] { return e.started.load() == 1; }, 5.0));
+  // Four views while the first fit holds: every view is in the map at once, none waits.
+  for (int v = 1; v < 5; ++v) host.onView(ViewData{none, none, Eigen::Isometry3d::Identity(), double(v)});
+  EXPECT_EQ(e.inserts.load(), 5);
+  EXPECT_EQ(e.finished.load(), 0);
+  EXPECT_TRUE(host.updateStatus(0).running);
+  e.open();
+  ASSERT_TRUE(host.waitForUpdates(5.0));
+  // The views that came during the first fit went into one more fit, not four.
+  EXPECT_EQ(e.started.load(), 2);
+  EXPECT_EQ(e.finished.load(), 2);
+  EXPECT_EQ(host.updateStatus(0).runs, 2u);
+  EXPECT_EQ(host.updateStatus(0).coalesced, 3u);
+  EXPECT_GE(host.updateStatus(0).age_seconds, 0.0);
+}
+
+TEST(ShapeEstimatorHost, AFitThatThrowsOnTheWorkerDisablesOnlyThatEstimator) {
+  std::vector<std::string> reported;
+  std::mutex reported_mutex;
+  ShapeEstimatorHost host(
+      [&](const std::string& msg) {
+        std::lock_guard<std::mutex> lock(reported_mutex);
+        reported.push_back(msg);
+      },
+      ShapeEstimatorHost::Updates::kBackground);
+  auto a = std::make_unique<GatedEstimator>(), b = std::make_unique<GatedEstimator>();
+  GatedEstimator &throwing = *a, &oom = *b;
+  throwing.throw_in_update = true;
+  oom.oom_in_update = true;
+  throwing.open();
+  oom.open();
+  host.add(std::move(a));
+  host.add(std::move(b));
+  const PointList none;
+  host.onView(ViewData{none, none, Eigen::Isometry3d::Identity(), 1.0});
+  ASSERT_TRUE(host.waitForUpdates(5.0));
+  EXPECT_FALSE(host.enabled(0));  // a throwing fit: disabled with its message
+  EXPECT_NE(host.lastError(0).find("fit failed on purpose"), std::string::npos);
+  EXPECT_TRUE(host.enabled(1));  // out of memory: that fit dropped and counted, still enabled
+  EXPECT_EQ(host.outOfMemoryDrops(1), 1u);
+  std::lock_guard<std::mutex> lock(reported_mutex);
+  EXPECT_EQ(reported.size(), 2u);
+}
+
+TEST(ShapeEstimatorHost, DestroyedMidFitItReturnsWithinASecond) {
+  auto host = std::make_unique<ShapeEstimatorHost>(nullptr, ShapeEstimatorHost::Updates::kBackground);
+  auto owned = std::make_unique<GatedEstimator>();  // its fit would hold for 20 s
+  GatedEstimator& e = *owned;
+  host->add(std::move(owned));
+  const PointList none;
+  host->onView(ViewData{none, none, Eigen::Isometry3d::Identity(), 1.0});
+  ASSERT_TRUE(waitUntil([&] { return e.started.load() == 1; }, 5.0));
+  const auto start = std::chrono::steady_clock::now();
+  host.reset();  // unloading the plugin, shutting the planner down
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
+}
+
+// A reset while the superellipsoid estimator fits: whatever the timing, nothing fitted before
+// the reset shows after it, and the next views fit again.
+TEST(SuperellipsoidEstimator, AResetDuringAFitLeavesNothingOfTheFitBehind) {
+  std::mt19937 rng(8);
+  std::vector<Superellipsoid> truths;
+  std::vector<PointList> clouds;
+  std::vector<Eigen::Isometry3d> poses;
+  for (int f = 0; f < 12; ++f) {  // a row of fruits: a fit of several clusters
+    truths.push_back(randomSuperellipsoid(rng, Eigen::Vector3d(0.15 * (f - 6), 0.5, 0.5)));
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(0.3, -1, 0.2);
+    scan.visible_fraction = 0.5;
+    scan.voxel = 0.002;
+    scan.seed = f;
+    clouds.push_back(scanFruit(SyntheticFruit::fromSuperellipsoid(truths.back()), scan));
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = truths.back().t + 0.4 * scan.view_dir.normalized();
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truths.back().t).rotation;
+    poses.push_back(pose);
+  }
+  const PointList none;
+  for (int round = 0; round < 6; ++round) {
+    ShapeEstimatorHost host(nullptr, ShapeEstimatorHost::Updates::kBackground);
+    host.add(std::make_unique<SuperellipsoidEstimator>());
+    for (std::size_t f = 0; f < clouds.size(); ++f) host.insertView(ViewData{clouds[f], none, poses[f], 1.0});
+    host.requestUpdate();
+    // Reset at different moments of the fit, the first round before it can have started.
+    std::this_thread::sleep_for(std::chrono::milliseconds(round * 15));
+    host.reset();
+    ASSERT_TRUE(host.waitForUpdates(10.0));
+    EXPECT_TRUE(host.fruits(0).empty()) << "round " << round;
+    EXPECT_TRUE(host.extraTargets().empty()) << "round " << round;
+    // Fits go on after the reset.
+    host.onView(ViewData{clouds[0], none, poses[0], 2.0});
+    ASSERT_TRUE(host.waitForUpdates(10.0));
+    const auto fruits = host.fruits(0);
+    ASSERT_EQ(fruits.size(), 1u) << "round " << round;
+    EXPECT_LT((fruits[0].center() - truths[0].t).norm(), 0.01);
+  }
 }

@@ -19,6 +19,8 @@ struct OrganizedFrame;  // fruit_input_stage.h
 
 namespace planner {
 
+class UpdateWorker;  // update_worker.h
+
 // What a view's points are, and so which steps of the fruit input stage (fruit_input_stage.h)
 // they still need.
 enum class ViewSource {
@@ -50,26 +52,50 @@ class ShapeEstimator {
   virtual std::vector<FruitEstimate> fruits() const = 0;
   virtual PointList extraTargets() const = 0;
   virtual void reset() = 0;
+  // Asks a running update() to return soon without publishing its results: the estimator is
+  // going away. May be called from any thread; the default does nothing.
+  virtual void cancelUpdate() {}
 };
 
 // Owns the estimators; an estimator that throws is disabled with a message, never taking the
 // planner down. Running out of memory is different: the call is dropped, counted and reported,
-// and the estimator stays enabled with what it had (the next, smaller view may fit). Every method may be called from several threads at once (add() before the
-// first view). The estimators are called outside the host's lock: a long fit in one thread
-// does not block queries of the host's state in another.
+// and the estimator stays enabled with what it had (the next, smaller view may fit). Every
+// method may be called from several threads at once (add() before the first view). The
+// estimators are called outside the host's lock: a long fit in one thread does not block
+// queries of the host's state in another.
+//
+// With background updates (what a planner's process wants), each estimator gets a worker
+// thread: onView() returns once the view is integrated, the fit runs beside the planner on the
+// newest map, and views that arrive meanwhile coalesce into the next fit.
 class ShapeEstimatorHost {
  public:
   // Where the host reports a disabled estimator (default: std::cerr); the ROS layer passes
   // rosconsole.
   using Reporter = std::function<void(const std::string&)>;
-  explicit ShapeEstimatorHost(Reporter report_error = nullptr);
+  enum class Updates { kInline, kBackground };
+  explicit ShapeEstimatorHost(Reporter report_error = nullptr, Updates updates = Updates::kInline);
+  // Stops the workers (a running fit is cancelled) before the estimators go.
+  ~ShapeEstimatorHost();
+  ShapeEstimatorHost(const ShapeEstimatorHost&) = delete;
+  ShapeEstimatorHost& operator=(const ShapeEstimatorHost&) = delete;
 
   void add(std::unique_ptr<ShapeEstimator> estimator);
-  // Insert + update of every enabled estimator.
+  // Insert into every enabled estimator, then update: inline, or requested from the workers.
   void onView(const ViewData& view);
-  // The two halves, for a host that updates on a timer instead of after every view.
+  // The two halves, for a host that updates on a timer instead of after every view. update()
+  // runs in the caller's thread whatever the mode; requestUpdate() hands it to the workers
+  // (inline mode: runs it).
   void insertView(const ViewData& view);
   void update();
+  void requestUpdate();
+  // Background mode: until no update is pending or running, or `timeout` seconds.
+  bool waitForUpdates(double timeout) const;
+  struct UpdateStatus {
+    std::size_t runs = 0, coalesced = 0;
+    double last_seconds = 0.0, age_seconds = -1.0;  // the last finished update; age < 0: none
+    bool running = false;
+  };
+  UpdateStatus updateStatus(std::size_t i) const;  // background mode; zeros inline
   PointList extraTargets() const;
   // Fruits of estimator i; empty (and the estimator disabled) if it throws.
   std::vector<FruitEstimate> fruits(std::size_t i) const;
@@ -96,7 +122,9 @@ class ShapeEstimatorHost {
   bool guarded(std::size_t i, Call&& call) const;
 
   Reporter report_error_;
+  const Updates updates_;
   mutable std::mutex mutex_;  // guards the members below
+  std::vector<std::unique_ptr<UpdateWorker>> workers_;  // background mode: one per estimator
   std::vector<std::unique_ptr<ShapeEstimator>> estimators_;  // only grows
   mutable std::vector<char> enabled_;
   mutable std::vector<std::string> errors_;

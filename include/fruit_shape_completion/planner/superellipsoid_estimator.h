@@ -1,16 +1,18 @@
 #pragma once
 // The superellipsoid shape estimator: TSDF fruit map -> surface -> clusters -> fits ->
 // predicted unseen surface. Thread-safe: views may be inserted from one thread (sensor
-// callbacks) while another (the planner) asks for fruits and targets. Every view first goes
-// through the fruit input stage (fruit_input_stage.h) as its source asks. Queries read the last
-// update's results and never wait for a fit; a view inserted during a fit waits only for the
-// surface extraction.
+// callbacks) while another (the planner) asks for fruits and targets and a third fits. Every
+// view first goes through the fruit input stage (fruit_input_stage.h) as its source asks.
+// Queries read the last update's results and never wait for a fit; a view inserted during a fit
+// waits only for the surface extraction. reset() cancels a running fit, whose results are then
+// never stored: nothing fitted before a reset shows after it.
 #include <fruit_shape_completion/fruit_input_stage.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 
+#include <atomic>
 #include <mutex>
 
 namespace fruit_shape_completion {
@@ -49,8 +51,11 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::vector<FruitEstimate> fruits() const override;
   PointList extraTargets() const override;
   void reset() override;
+  void cancelUpdate() override;  // for good: the estimator is going away
 
-  // The fruit map as a file (TsdfMap::save/load); a failed load leaves the map unchanged.
+  // The fruit map as a file (TsdfMap::save/load); a failed load leaves the map unchanged. The
+  // map is copied under the lock and written outside it, atomically (a temporary file renamed
+  // over the target): views do not wait for the disk, and a failed save keeps the old file.
   bool saveMap(const std::string& path, std::string* error) const;
   bool loadMap(const std::string& path, std::string* error);
 
@@ -69,6 +74,9 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   FruitInputStage input_stage_;  // const after construction: runs outside the locks
   // Lock order: fit_mutex_, then map_mutex_, then results_mutex_.
   std::mutex fit_mutex_;  // one update at a time; guards pipeline_
+  std::atomic<bool> cancel_{false};  // a running update returns early and stores nothing
+  std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
+  std::atomic<int> resets_waiting_{0};  // resets that set cancel_ and wait for the fit
   FruitShapePipeline pipeline_;
   mutable std::mutex map_mutex_;  // guards the members below up to results_mutex_
   TsdfMap map_;

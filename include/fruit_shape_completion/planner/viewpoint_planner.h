@@ -54,7 +54,9 @@ struct PlannerParams {
   bool textures = false;  // for whoever builds the renderer: sim::Shading::textures (Gazebo's look)
   bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
   double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
-  bool charge_compute_time = false; // the planner's and estimators' wall time adds to the clock
+  // The planner's wall time (with the estimators' insertView) adds to the clock, and a fit's
+  // results reach the planner only its measured duration after it started.
+  bool charge_compute_time = false;
   // The scene's arm carries the camera: only views with an inverse kinematics solution free of
   // what the map has seen occupied are sampled (as MoveIt plans in its octomap), travel takes
   // the joint-space motion time, and a move whose goal collides with the plants fails.
@@ -81,7 +83,8 @@ struct ViewRecord {
   bool exploration = false;
   double gain = 0.0;  // the best candidate's gain (unknown cells its rays see) when this view was planned
   double wall_ms = 0.0;
-  double compute_ms = 0.0;  // the planner's and estimators' part of wall_ms (rendering excluded)
+  double compute_ms = 0.0;  // what the planner blocked on: wall_ms without rendering and the fit
+  double fit_ms = 0.0;      // a fit started after this view (0: none); runs beside the planner
 };
 
 struct EpisodeResult {

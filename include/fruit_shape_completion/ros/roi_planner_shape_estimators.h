@@ -38,12 +38,17 @@ class RoiPlannerShapeEstimators {
   RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh, const std::string& map_frame);
   bool empty() const { return loader_.host().size() == 0; }
 
-  // One view (read as toRoiView reads it). Inserts it into every estimator and updates them (the fit runs here, in the caller's
-  // thread). Never throws: a malformed cloud or bad indices are logged, counted and skipped.
+  // One view (read as toRoiView reads it). Returns once every estimator has it in its map; the
+  // fits run on the estimators' own threads, views arriving meanwhile coalesce into the next
+  // fit. Never throws: a malformed cloud or bad indices are logged, counted and skipped.
   void insertView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
                   const geometry_msgs::Transform& transform, double time = 0.0);
-  // The estimators' predicted, unseen fruit surface in the map frame. Does not wait for a fit.
+  // The estimators' predicted, unseen fruit surface in the map frame, from their latest
+  // finished fits. Does not wait for a fit.
   std::vector<octomap::point3d> extraTargets() const;
+  // Until no fit is pending or running (false after `seconds`): for tools and tests, which
+  // want the fit of the view they just gave; a planner does not wait.
+  bool waitForFits(double seconds) const { return loader_.host().waitForUpdates(seconds); }
   void reset();
 
   planner::ShapeEstimatorHost& host() { return loader_.host(); }
