@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Fuzzes each file reader with libFuzzer (clang, -fsanitize=fuzzer,address,undefined) for a
-# fixed time, starting from the seeds in test/fuzz/seeds; not part of CI.
-#   scripts/fuzz.sh [SECONDS_PER_TARGET=600] [TARGET...]   targets: cloud_file map_file scene_file
+# Fuzzes each file reader and each message the plugin parses with libFuzzer (clang,
+# -fsanitize=fuzzer,address,undefined) for a fixed time, starting from the seeds in
+# test/fuzz/seeds; not part of CI.
+#   scripts/fuzz.sh [SECONDS_PER_TARGET=600] [TARGET...]
+#   targets: cloud_file map_file scene_file camera_cloud pointcloud_with_roi
 # Inputs that crash, leak, hang (> 10 s) or allocate more than 1 GiB land in build-fuzz/findings/.
 # A summary line per target ends the run; the exit status is non-zero if any target failed.
 set -euo pipefail
@@ -9,7 +11,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SECONDS_PER_TARGET="${1:-600}"
 shift || true
 TARGETS=("$@")
-[ ${#TARGETS[@]} -gt 0 ] || TARGETS=(cloud_file map_file scene_file)
+[ ${#TARGETS[@]} -gt 0 ] || TARGETS=(cloud_file map_file scene_file camera_cloud pointcloud_with_roi)
 "$ROOT/scripts/setup.sh"
 command -v clang++ >/dev/null || { echo "fuzz: clang++ is needed (apt-get install clang)" >&2; exit 2; }
 export PATH="/usr/bin:$PATH"

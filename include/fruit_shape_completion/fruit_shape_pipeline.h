@@ -25,6 +25,11 @@ struct PipelineParams {
   double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
   // A cluster that no superellipsoid fits is split in two up to this depth (touching fruits).
   int max_split_depth = 2;
+  // A changed cluster that one accepted fruit covered before keeps that fit, unrefitted, while
+  // the fit still explains it: the RMS radial residual of its points under the old fit at most
+  // (1 + refit_tolerance) times the old one (1 mm at least), and at most refit_tolerance more
+  // points. A view that only re-observes a fruit then costs no fit. 0: refit every change.
+  double refit_tolerance = 0.25;
   FitParams fit;
   MissingSurfaceParams missing;
   // Throws std::invalid_argument naming the first bad value.
@@ -36,6 +41,7 @@ struct PipelineStats {
   int non_finite_points = 0;  // skipped
   int clusters = 0;
   int fitted = 0;  // fits run this update (others reused)
+  int kept = 0;    // changed clusters whose previous fit still explained them (not refitted)
   int splits = 0;  // clusters split into several fruits
   int accepted = 0;
   double seconds = 0.0;          // all of it; of which
@@ -63,6 +69,7 @@ class FruitShapePipeline {
     FruitEstimate estimate;
     std::uint64_t cluster_signature = 0;  // order-independent hash of its cluster's points
     std::size_t cluster_points = 0;
+    std::size_t fitted_points = 0;  // of the points its fit was made on (kept fits do not grow it)
     std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells of this fruit's points
   };
 
@@ -70,6 +77,9 @@ class FruitShapePipeline {
   // The cluster as one fruit, or, if no superellipsoid fits it, split into parts that fit.
   std::vector<std::pair<PointList, FruitEstimate>> estimateWithSplit(const PointList& points, int depth);
   int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
+  // The previous fruit the changed cluster's points still fit (see refit_tolerance), or -1.
+  int stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
+                       const std::vector<char>& reused) const;
 
   PipelineParams params_;
   std::vector<Track> tracks_;

@@ -22,6 +22,10 @@ struct FitParams {
   double initial_axis = 0.05;
   double initial_e = 0.5;
   int max_iterations = 100;  // per start
+  // The final solve runs on at most this many of the points, evenly strided (the residual and
+  // the acceptance use all of them): a fruit seen all round gives thousands of surface points
+  // that add cost, not information. 0: all points.
+  int max_points = 600;
   // Also start with the shape's z axis along world x and y, keep the lowest cost. Guards
   // against the local minima of a single start at rpy = 0.
   bool extra_starts = true;

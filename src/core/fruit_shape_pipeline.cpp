@@ -59,6 +59,8 @@ void PipelineParams::validate() const {
   if (!(center_lambda >= 0.0) || !std::isfinite(center_lambda))
     throw std::invalid_argument("center lambda must be a finite value >= 0");
   if (missing.samples < 0) throw std::invalid_argument("missing-surface samples must be >= 0");
+  if (!(refit_tolerance >= 0.0) || !std::isfinite(refit_tolerance))
+    throw std::invalid_argument("refit tolerance must be a finite value >= 0");
   if (!(missing.threshold > 0.0) || !std::isfinite(missing.threshold))
     throw std::invalid_argument("missing-surface threshold must be a finite value > 0");
   fit.validate();
@@ -132,6 +134,32 @@ int FruitShapePipeline::bestOverlap(const std::unordered_set<std::uint64_t>& cel
   return best;
 }
 
+int FruitShapePipeline::stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
+                                         const std::vector<char>& reused) const {
+  // Exactly one previous fruit may share cells with the cluster (not a merge, not a split).
+  int only = -1;
+  for (std::size_t k = 0; k < tracks_.size(); ++k) {
+    bool shares = false;
+    for (auto cell : tracks_[k].cells)
+      if (cells.count(cell)) {
+        shares = true;
+        break;
+      }
+    if (!shares) continue;
+    if (only >= 0 || reused[k]) return -1;
+    only = static_cast<int>(k);
+  }
+  if (only < 0) return -1;
+  const Track& t = tracks_[only];
+  if (!t.estimate.accepted || static_cast<double>(points.size()) >
+                                  (1.0 + params_.refit_tolerance) * static_cast<double>(t.fitted_points))
+    return -1;
+  double sum = 0.0;
+  for (const auto& p : points) sum += std::pow(t.estimate.shape.radialDistance(p), 2);
+  const double rms = std::sqrt(sum / static_cast<double>(points.size()));
+  return rms <= (1.0 + params_.refit_tolerance) * std::max(t.estimate.rms, 0.001) ? only : -1;
+}
+
 std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWithSplit(const PointList& points,
                                                                                         int depth) {
   const int warm = bestOverlap(occupiedCells(points));
@@ -178,7 +206,14 @@ std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWit
     out.emplace_back(points, whole);
     return out;
   }
-  FruitEstimate first[2] = {estimateCluster(part[0], -1, nullptr), estimateCluster(part[1], -1, nullptr)};
+  // Each half starts from the previous fruit it overlaps most, if there is one: touching fruits
+  // seen before were usually fitted apart before.
+  auto previousOf = [&](const PointList& half) -> const Track* {
+    const int k = bestOverlap(occupiedCells(half));
+    return k >= 0 ? &tracks_[k] : nullptr;
+  };
+  FruitEstimate first[2] = {estimateCluster(part[0], -1, previousOf(part[0])),
+                            estimateCluster(part[1], -1, previousOf(part[1]))};
   stats_.fitted += 2;
   if (first[0].converged && first[1].converged) {
     for (std::size_t i = 0; i < points.size(); ++i)
@@ -243,11 +278,39 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
         unchanged = true;
       }
     if (unchanged) continue;
+    const std::unordered_set<std::uint64_t> cells = occupiedCells(pts);
+    const int kept = params_.refit_tolerance > 0.0 ? stillExplainedBy(pts, cells, reused) : -1;
+    if (kept >= 0) {
+      // The same fruit seen again: new points, the old fit, its unseen surface recomputed.
+      reused[kept] = 1;
+      Track t = tracks_[kept];
+      FruitEstimate& e = t.estimate;
+      e.points = pts;
+      e.n_points = static_cast<int>(pts.size());
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (const auto& p : pts) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+        sum += p;
+      }
+      e.points_centroid = sum / static_cast<double>(pts.size());
+      e.bbox_volume = (hi - lo).prod();
+      if (params_.missing.samples > 0) e.missing_surface = predictMissingSurface(e.shape, pts, params_.missing);
+      e.refitted = false;
+      t.cluster_signature = signature;
+      t.cluster_points = pts.size();
+      t.cells = cells;
+      next.push_back(std::move(t));
+      ++stats_.kept;
+      continue;
+    }
     for (auto& part : estimateWithSplit(pts, 0)) {
       Track t;
       t.estimate = std::move(part.second);
       t.cluster_signature = signature;
       t.cluster_points = pts.size();
+      t.fitted_points = part.first.size();
       t.cells = occupiedCells(part.first);
       pending.push_back(std::move(t));
     }

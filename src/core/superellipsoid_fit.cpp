@@ -169,6 +169,7 @@ void FitParams::validate() const {
   if (!(initial_e >= min_e && initial_e <= max_e))
     fail("initial_e must lie within the exponent bounds");
   if (max_iterations < 1) fail("max_iterations must be >= 1");
+  if (max_points != 0 && max_points < 11) fail("max_points must be 0 (all) or >= 11");
   if (!(max_rms > 0.0)) fail("max_rms must be > 0");
 }
 
@@ -284,7 +285,15 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
     }
   }
   Solution final_solution = *best;
-  solve(finite, center_prior, params, final_solution);
+  if (params.max_points > 0 && finite.size() > static_cast<size_t>(params.max_points)) {
+    std::vector<Point> strided;
+    strided.reserve(static_cast<size_t>(params.max_points) + 1);
+    const double step = static_cast<double>(finite.size()) / params.max_points;
+    for (int i = 0; i < params.max_points; ++i) strided.push_back(finite[static_cast<size_t>(i * step)]);
+    solve(strided, center_prior, params, final_solution);
+  } else {
+    solve(finite, center_prior, params, final_solution);
+  }
   result.iterations += final_solution.iterations;
   best = &final_solution;
 

@@ -348,7 +348,15 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         if (!p.charge_compute_time) return t;
         return t + std::chrono::duration<double>(std::chrono::steady_clock::now() - compute0).count() - fit_wall;
       };
+      auto visibleNow = [&]() -> const FitResults& {
+        if (fit_pending && clockNow() >= fit_ready) {
+          visible = std::move(fit);
+          fit_pending = false;
+        }
+        return visible;
+      };
       host.insertView(given);
+      visibleNow();  // a finished fit's results first: the next fit must not overwrite them
       if (clockNow() >= fit_ready && t - last_update >= p.estimator_period) {
         const double start = clockNow();
         const auto fit0 = std::chrono::steady_clock::now();
@@ -360,13 +368,6 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         fit_pending = true;
         last_update = t;
       }
-      auto visibleNow = [&]() -> const FitResults& {
-        if (fit_pending && clockNow() >= fit_ready) {
-          visible = std::move(fit);
-          fit_pending = false;
-        }
-        return visible;
-      };
 
       ViewRecord rec;
       rec.view = view;

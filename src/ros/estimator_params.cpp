@@ -104,6 +104,7 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   read("cluster_max_size", p.pipeline.clustering.max_size);
   read("normal_radius", p.pipeline.normals.radius);
   read("center_lambda", p.pipeline.center_lambda);
+  read("refit_tolerance", p.pipeline.refit_tolerance);
   read("alpha", p.pipeline.fit.alpha);
   read("gamma", p.pipeline.fit.gamma);
   read("min_axis", p.pipeline.fit.min_axis);
@@ -111,6 +112,7 @@ planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle
   read("min_e", p.pipeline.fit.min_e);
   read("max_e", p.pipeline.fit.max_e);
   read("max_iterations", p.pipeline.fit.max_iterations);
+  read("max_fit_points", p.pipeline.fit.max_points);
   read("max_rms", p.pipeline.fit.max_rms);
   read("missing_surface_samples", p.pipeline.missing.samples);
   read("missing_surface_threshold", p.pipeline.missing.threshold);

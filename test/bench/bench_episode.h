@@ -1,6 +1,6 @@
 #pragma once
 // What the per-view benchmarks share: a seeded 120 s planner episode on scenario 2
-// (../shared/data; the procedural glasshouse when it is absent), with depth noise, whose views
+// (../shared/data; the procedural glasshouse when it is absent), paper profile, whose views
 // are handed to a callback, and quantiles of per-view times.
 #include <fruit_shape_completion/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
@@ -28,12 +28,16 @@ inline std::string recordEpisode(planner::PlannerParams::Input input,
   }
   std::vector<int> triangle_fruit;
   const auto fruits = sim::computeFruitTruth(scene, &triangle_fruit);
-  planner::PlannerParams params;
+  // The paper profile: textured plants, the paper's blurred depth noise, the arm; so the frames
+  // look like what a robot's camera delivers and pointcloud_roi's red test picks the fruit.
+  planner::PlannerParams params = planner::paperProfile();
   params.duration = 120.0;
   params.seed = 3;
   params.input = input;
   const planner::SceneTruth truth = planner::makeSceneTruth(fruits, params.octree_resolution);
-  const sim::RgbdRenderer renderer(scene, triangle_fruit);
+  sim::Shading shading;
+  shading.textures = params.textures;
+  const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
   planner::ShapeEstimatorHost host;  // none: the episode only records what the camera saw
   planner::runEpisode(scene, renderer, truth, host, params,
                       [&](const planner::ViewRecord&, const planner::RoiOcTree&, const sim::RgbdFrame& frame,

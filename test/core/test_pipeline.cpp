@@ -132,6 +132,41 @@ TEST(FruitShapePipeline, IdsAreStableAndUnchangedFruitsAreNotRefitted) {
   EXPECT_NE(id3, id2);
 }
 
+// A fruit seen again from the same side (new noise, a few more points) keeps its fit: the fit
+// explains the new points as well as the old. Seen from another side, it is refitted, and the
+// kept fit's unseen surface follows the new points.
+TEST(FruitShapePipeline, AReobservedFruitTheFitStillExplainsIsNotRefitted) {
+  const Superellipsoid s1 = fruitAt(Eigen::Vector3d(0, 0, 0.5), 31);
+  FruitShapePipeline pipeline;
+  auto first = pipeline.update(scan(s1, 0.5, Eigen::Vector3d(0, 1, 0), 1));
+  ASSERT_EQ(first.size(), 1u);
+  ASSERT_TRUE(first[0].accepted);
+  const Superellipsoid fitted = first[0].shape;
+  // The same side, other noise: a changed cluster, not refitted.
+  auto again = pipeline.update(scan(s1, 0.52, Eigen::Vector3d(0, 1, 0), 2));
+  ASSERT_EQ(again.size(), 1u);
+  EXPECT_EQ(pipeline.lastStats().fitted, 0);
+  EXPECT_EQ(pipeline.lastStats().kept, 1);
+  EXPECT_FALSE(again[0].refitted);
+  EXPECT_EQ(again[0].id, first[0].id);
+  EXPECT_LT((again[0].shape.t - fitted.t).norm(), 1e-12);
+  EXPECT_EQ(again[0].n_points, static_cast<int>(again[0].points.size()));
+  // Seen all round: many more points, refitted, and closer to the truth.
+  auto round = pipeline.update(scan(s1, 0.95, Eigen::Vector3d(0, 1, 0), 3));
+  ASSERT_EQ(round.size(), 1u);
+  EXPECT_EQ(pipeline.lastStats().fitted, 1);
+  EXPECT_TRUE(round[0].refitted);
+  EXPECT_NEAR(round[0].volume, s1.volume(), 0.05 * s1.volume());
+  // With the tolerance at 0, every change is refitted.
+  PipelineParams strict;
+  strict.refit_tolerance = 0.0;
+  FruitShapePipeline always(strict);
+  always.update(scan(s1, 0.5, Eigen::Vector3d(0, 1, 0), 1));
+  always.update(scan(s1, 0.52, Eigen::Vector3d(0, 1, 0), 2));
+  EXPECT_EQ(always.lastStats().fitted, 1);
+  EXPECT_EQ(always.lastStats().kept, 0);
+}
+
 TEST(FruitShapePipeline, BadInputIsCountedNotFatal) {
   FruitShapePipeline pipeline;
   EXPECT_TRUE(pipeline.update({}).empty());

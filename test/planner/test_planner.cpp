@@ -727,3 +727,29 @@ TEST(SuperellipsoidEstimator, AResetDuringAFitLeavesNothingOfTheFitBehind) {
     EXPECT_LT((fruits[0].center() - truths[0].t).norm(), 0.01);
   }
 }
+
+// With compute time on the clock, a fit runs beside the planner: it is not charged to the robot,
+// and its results reach the planner one view later (not at once, and not never: each fit's
+// results are shown before the next fit starts, even when every view starts one).
+TEST(ViewpointPlanner, AFitsResultsReachThePlannerAfterTheFitNotBeforeAndNotNever) {
+  SimulatedScene s("procedural:3");
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  PlannerParams p;
+  p.duration = 40;
+  p.render_threads = 2;
+  p.charge_compute_time = true;
+  p.estimator_period = 0.0;  // a fit after every view the estimator is idle for
+  const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, p);
+  ASSERT_GE(r.views.size(), 5u);
+  int fits = 0;
+  for (const auto& v : r.views) fits += v.fit_ms > 0.0;
+  EXPECT_GE(fits, static_cast<int>(r.views.size()) - 1);
+  // The first view's fit is still running when that view is scored.
+  EXPECT_EQ(r.views[0].se_true.all.fruits, 0);
+  EXPECT_GT(r.views[1].se_true.all.fruits, 0);
+  int red = 0;
+  for (const auto& f : sim::computeFruitTruth(s.scene)) red += f.color == "red";
+  EXPECT_GE(r.views.back().se_true.ma50.fruits, red / 2);
+  EXPECT_EQ(static_cast<int>(r.final_fruits.size()), r.views.back().se_true.all.fruits);
+}
