@@ -29,7 +29,7 @@ struct PipelineParams {
   // the fit still explains it: the RMS radial residual of its points under the old fit at most
   // (1 + refit_tolerance) times the old one (1 mm at least), and at most refit_tolerance more
   // points. A view that only re-observes a fruit then costs no fit. 0: refit every change.
-  double refit_tolerance = 0.25;
+  double refit_tolerance = 0.1;
   FitParams fit;
   MissingSurfaceParams missing;
   // Throws std::invalid_argument naming the first bad value.
