@@ -1,6 +1,7 @@
 #include <fruit_shape_completion/planner/shape_estimator.h>
 #include <fruit_shape_completion/planner/update_worker.h>
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 #include <new>
@@ -135,11 +136,36 @@ void ShapeEstimatorHost::onView(const ViewData& view) {
     requestUpdate();
     return;
   }
+  const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = 0, n = size(); i < n; ++i)
     guarded(i, [&](ShapeEstimator& e) {
       e.insertView(view);
       e.update();
     });
+  recordInsert(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+}
+
+void ShapeEstimatorHost::recordInsert(double ms) {
+  constexpr std::size_t kKept = 256;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (insert_ms_.size() < kKept) {
+    insert_ms_.push_back(ms);
+  } else {
+    insert_ms_[insert_next_] = ms;
+    insert_next_ = (insert_next_ + 1) % kKept;
+  }
+}
+
+double ShapeEstimatorHost::insertLatencyMs(double q) const {
+  std::vector<double> v;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    v = insert_ms_;
+  }
+  if (v.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1) + 0.5);
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
+  return v[k];
 }
 
 void ShapeEstimatorHost::requestUpdate() {
@@ -182,7 +208,9 @@ ShapeEstimatorHost::UpdateStatus ShapeEstimatorHost::updateStatus(std::size_t i)
 }
 
 void ShapeEstimatorHost::insertView(const ViewData& view) {
+  const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = 0, n = size(); i < n; ++i) guarded(i, [&](ShapeEstimator& e) { e.insertView(view); });
+  recordInsert(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
 }
 
 void ShapeEstimatorHost::update() {

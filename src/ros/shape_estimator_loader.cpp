@@ -66,6 +66,9 @@ void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::Diagnosti
     status.add("last fit duration [ms]", 1e3 * fit.last_seconds);
     status.add("seconds since the last fit finished", fit.age_seconds < 0 ? std::string("never") : std::to_string(fit.age_seconds));
     status.add("fit running", fit.running ? "yes" : "no");
+    status.add("insertView latency, last 256 views: median [ms]", host_.insertLatencyMs(0.5));
+    status.add("insertView latency, last 256 views: p95 [ms]", host_.insertLatencyMs(0.95));
+    status.add("insertView latency, last 256 views: max [ms]", host_.insertLatencyMs(1.0));
     if (oom > 0) status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; " + host_.lastError(i));
     else status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
   } catch (const std::exception& e) {

@@ -91,6 +91,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::string name() const override { return name_; }
   void insertView(const planner::ViewData& view) override {
     check();
+    ++planner_views_;
     if (fruit_cloud_) return;  // the map is fed by the full-resolution topic
     last_planner_view_ = ros::WallTime::now().toSec();
     if (camera_buffer_ && view.source != planner::ViewSource::kCameraFrame) {
@@ -130,7 +131,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     check();
     const planner::EstimatorStatus s = estimator_->status();
     const double since = last_update_ > 0 ? ros::WallTime::now().toSec() - last_update_ : -1.0;
-    return {{"views", std::to_string(s.views)},
+    return {{"planner views received since start", std::to_string(planner_views_)},
+            {"views", std::to_string(s.views)},
             {"views refused", std::to_string(s.views_refused)},
             {"map blocks", std::to_string(s.blocks) + " of " + std::to_string(s.max_blocks)},
             {"map memory [MiB]", std::to_string(s.memory_mb)},
@@ -338,7 +340,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::unique_ptr<ros_io::CameraFrameBuffer> camera_buffer_;
   ros::Subscriber camera_;
   std::atomic<double> last_planner_view_{0.0};  // wall time [s]
-  std::atomic<std::size_t> frames_received_{0}, fallback_views_{0}, no_frame_{0}, no_tf_{0}, bad_frames_{0},
+  std::atomic<std::size_t> planner_views_{0}, frames_received_{0}, fallback_views_{0}, no_frame_{0}, no_tf_{0}, bad_frames_{0},
       not_organized_{0}, clock_jumps_{0}, too_large_{0};
   std::mutex still_mutex_;  // guards the standalone rest detection below
   Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();

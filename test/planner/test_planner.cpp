@@ -753,3 +753,78 @@ TEST(ViewpointPlanner, AFitsResultsReachThePlannerAfterTheFitNotBeforeAndNotNeve
   EXPECT_GE(r.views.back().se_true.ma50.fruits, red / 2);
   EXPECT_EQ(static_cast<int>(r.final_fruits.size()), r.views.back().se_true.all.fruits);
 }
+
+// The upstream planner's threads against a background host: four spinner threads inserting
+// views, the planning thread asking for targets and fruits, and service calls (clear, save,
+// load) from another thread, all at once (scripts/sanitize.sh tsan runs it under TSan). After the
+// storm the host still maps and fits.
+TEST(ShapeEstimatorHost, BackgroundHostUnderSpinnerThreadsPlanningAndServiceCalls) {
+  ShapeEstimatorHost host(nullptr, ShapeEstimatorHost::Updates::kBackground);
+  auto owned = std::make_unique<SuperellipsoidEstimator>();
+  SuperellipsoidEstimator& est = *owned;
+  host.add(std::move(owned));
+  std::mt19937 rng(9);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  std::vector<PointList> clouds;
+  std::vector<Eigen::Isometry3d> poses;
+  for (int v = 0; v < 8; ++v) {
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(std::cos(0.8 * v), -1, std::sin(0.8 * v));
+    scan.visible_fraction = 0.4;
+    scan.voxel = 0.002;
+    scan.seed = v;
+    clouds.push_back(scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan));
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+    poses.push_back(pose);
+  }
+  const PointList none;
+  const std::string path = "/tmp/fsc_background_host_" + std::to_string(::getpid()) + ".tsdf";
+  std::atomic<bool> done{false};
+  std::atomic<int> queries{0}, services{0};
+  std::vector<std::thread> spinners;
+  for (int t = 0; t < 4; ++t)
+    spinners.emplace_back([&, t] {
+      for (int round = 0; round < 3; ++round)
+        for (std::size_t v = static_cast<std::size_t>(t); v < clouds.size(); v += 4)
+          host.onView(ViewData{clouds[v], none, poses[v], 1.0 + round});
+    });
+  std::thread planning([&] {
+    while (!done) {
+      for (const auto& p : host.extraTargets()) EXPECT_TRUE(p.allFinite());
+      for (const auto& f : host.fruits(0)) EXPECT_TRUE(f.center().allFinite());
+      host.updateStatus(0);
+      host.insertLatencyMs(0.95);
+      ++queries;
+    }
+  });
+  std::thread service_calls([&] {
+    std::string err;
+    for (int k = 0; !done; ++k) {
+      if (k % 3 == 0) est.saveMap(path, &err);
+      else if (k % 3 == 1) est.loadMap(path, &err);
+      else host.reset();
+      ++services;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  for (auto& t : spinners) t.join();
+  done = true;
+  planning.join();
+  service_calls.join();
+  ASSERT_TRUE(host.waitForUpdates(20.0));
+  EXPECT_GT(queries.load(), 0);
+  EXPECT_GT(services.load(), 0);
+  EXPECT_TRUE(host.enabled(0)) << host.lastError(0);
+  // Still maps and fits: a clean start, every view, the fruit back.
+  host.reset();
+  for (std::size_t v = 0; v < clouds.size(); ++v) host.onView(ViewData{clouds[v], none, poses[v], 5.0});
+  ASSERT_TRUE(host.waitForUpdates(20.0));
+  const auto fruits = host.fruits(0);
+  ASSERT_EQ(fruits.size(), 1u);
+  EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.15 * truth.volume());
+  EXPECT_LT((fruits[0].center() - truth.t).norm(), 0.01);
+  EXPECT_GT(host.insertLatencyMs(0.5), 0.0);
+  std::remove(path.c_str());
+}

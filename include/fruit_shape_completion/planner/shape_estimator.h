@@ -96,6 +96,9 @@ class ShapeEstimatorHost {
     bool running = false;
   };
   UpdateStatus updateStatus(std::size_t i) const;  // background mode; zeros inline
+  // How long the last (up to 256) insertView/onView calls held their caller [ms]: what a
+  // planner waits for. Quantile q in [0, 1]; 0 if there was none.
+  double insertLatencyMs(double q) const;
   PointList extraTargets() const;
   // Fruits of estimator i; empty (and the estimator disabled) if it throws.
   std::vector<FruitEstimate> fruits(std::size_t i) const;
@@ -125,6 +128,9 @@ class ShapeEstimatorHost {
   const Updates updates_;
   mutable std::mutex mutex_;  // guards the members below
   std::vector<std::unique_ptr<UpdateWorker>> workers_;  // background mode: one per estimator
+  std::vector<double> insert_ms_;  // ring of the last calls' durations
+  std::size_t insert_next_ = 0;
+  void recordInsert(double ms);
   std::vector<std::unique_ptr<ShapeEstimator>> estimators_;  // only grows
   mutable std::vector<char> enabled_;
   mutable std::vector<std::string> errors_;
