@@ -81,6 +81,7 @@ bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size
   points->clear();
   *non_finite = 0;
   if (!checkXyzCloud(msg, error)) return false;
+  if (std::uint64_t(msg.width) * msg.height == 0) return true;  // PCL's conversion indexes point 0
   pcl::PointCloud<pcl::PointXYZ> cloud;
   pcl::fromROSMsg(msg, cloud);
   points->reserve(cloud.size());
@@ -98,6 +99,10 @@ bool fromRoiCloud(const sensor_msgs::PointCloud2& msg, const std::vector<std::in
   selected->clear();
   *bad_indices = 0;
   if (!checkXyzCloud(msg, error)) return false;
+  if (std::uint64_t(msg.width) * msg.height == 0) {  // PCL's conversion indexes point 0
+    *bad_indices = indices.size();
+    return true;
+  }
   pcl::PointCloud<pcl::PointXYZ> cloud;
   pcl::fromROSMsg(msg, cloud);
   all->reserve(cloud.size());

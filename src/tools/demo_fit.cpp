@@ -7,6 +7,8 @@
 
 #include <cstdio>
 #include <cstring>
+#include "command_line.h"
+
 #include <iostream>
 #include <string>
 
@@ -14,14 +16,9 @@ using namespace fruit_shape_completion;
 
 int main(int argc, char** argv) {
   unsigned seed = 7;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--seed") && i + 1 < argc) {
-      seed = static_cast<unsigned>(std::strtoul(argv[++i], nullptr, 10));
-    } else {
-      std::cerr << "usage: demo_fit [--seed N]\n";
-      return 2;
-    }
-  }
+  CLI::App app("Fits superellipsoids to synthetic fruits seen from one side and prints how well.", "demo_fit");
+  app.add_option("--seed", seed, "random seed")->capture_default_str();
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   std::mt19937 rng(seed);
   struct Case {
     std::string kind;

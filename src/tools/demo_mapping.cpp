@@ -13,6 +13,8 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include "command_line.h"
+
 #include <iostream>
 #include <string>
 
@@ -22,19 +24,11 @@ int main(int argc, char** argv) {
   unsigned seed = 3;
   int views = 8;
   std::string save_map;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--seed") && i + 1 < argc) seed = std::strtoul(argv[++i], nullptr, 10);
-    else if (!std::strcmp(argv[i], "--views") && i + 1 < argc) views = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--save-map") && i + 1 < argc) save_map = argv[++i];
-    else {
-      std::cerr << "usage: demo_mapping [--seed N] [--views N] [--save-map FILE.tsdf]\n";
-      return 2;
-    }
-  }
-  if (views < 1 || views > 100) {
-    std::cerr << "demo_mapping: --views must be 1..100\n";
-    return 2;
-  }
+  CLI::App app("Maps a simulated fruit cluster from several views and fits its fruits.", "demo_mapping");
+  app.add_option("--seed", seed, "random seed")->capture_default_str();
+  app.add_option("--views", views, "views of the cluster")->check(CLI::Range(1, 100))->capture_default_str();
+  app.add_option("--save-map", save_map, "write the TSDF map to FILE.tsdf");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   std::mt19937 rng(seed);
   const Eigen::Vector3d plant(0.0, 0.6, 0.5);
   AnalyticScene scene;

@@ -3,37 +3,25 @@
 #include <fruit_shape_completion/cloud_io.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 
+#include "command_line.h"
+
 #include <chrono>
-#include <cstring>
 #include <iostream>
 
 #include "fruit_report.h"
 
 using namespace fruit_shape_completion;
 
-namespace {
-int usage(const char* why) {
-  if (why) std::cerr << "fit_cloud: " << why << "\n";
-  std::cerr << "usage: fit_cloud --input FILE [--json] [--surface-out FILE.ply]\n"
-               "  FILE: .pcd, .ply, or text with 'x y z' per line (metres, one frame)\n"
-               "  --json         one JSON object on stdout (logs on stderr)\n"
-               "  --surface-out  PLY of the fitted surfaces: observed part green, predicted\n"
-               "                 unseen part red (accepted fruits only)\n";
-  return 2;
-}
-}  // namespace
-
 int main(int argc, char** argv) {
   std::string input, surface_out;
   bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--input") && i + 1 < argc) input = argv[++i];
-    else if (!std::strcmp(argv[i], "--json")) json = true;
-    else if (!std::strcmp(argv[i], "--surface-out") && i + 1 < argc) surface_out = argv[++i];
-    else if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) return usage(nullptr), 0;
-    else return usage((std::string("unknown or incomplete argument '") + argv[i] + "'").c_str());
-  }
-  if (input.empty()) return usage("--input is required");
+  CLI::App app("Fits one superellipsoid per fruit to a fruit surface cloud file.", "fit_cloud");
+  app.add_option("--input", input, "FILE: .pcd, .ply, or text with 'x y z' per line (metres, one frame)")
+      ->required();
+  app.add_flag("--json", json, "one JSON object on stdout (logs on stderr)");
+  app.add_option("--surface-out", surface_out,
+                 "PLY of the fitted surfaces: observed part green, predicted unseen part red (accepted fruits only)");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
 
   const auto start = std::chrono::steady_clock::now();
   const CloudFile cloud = readPointCloud(input);
@@ -82,10 +70,10 @@ int main(int argc, char** argv) {
   }
 
   if (json) {
-    std::cout << "{\"fruits\": [";
-    for (size_t i = 0; i < fruits.size(); ++i) std::cout << (i ? ", " : "") << fruitJson(fruits[i]);
-    std::cout << "], \"non_finite_points\": " << st.non_finite_points
-              << ", \"total_ms\": " << jsonNumber(total_ms) << "}\n";
+    nlohmann::json out = {{"fruits", nlohmann::json::array()}, {"non_finite_points", st.non_finite_points},
+                          {"total_ms", total_ms}};
+    for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
+    std::cout << out.dump() << "\n";
   } else {
     printFruitTable(std::cout, fruits);
     std::cout << "total " << total_ms << " ms\n";

@@ -2,60 +2,33 @@
 
 #include <cmath>
 #include <cstdio>
-#include <sstream>
 
 namespace fruit_shape_completion {
 
-std::string jsonNumber(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.9g", v);
-  return buf;
-}
-
-std::string jsonString(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof(buf), "\\u%04x", c);
-          out += buf;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
-
 namespace {
-std::string vec3(const Eigen::Vector3d& v) {
-  return "[" + jsonNumber(v.x()) + ", " + jsonNumber(v.y()) + ", " + jsonNumber(v.z()) + "]";
-}
+nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 }  // namespace
 
-std::string fruitJson(const FruitEstimate& f) {
+nlohmann::json fruitJson(const FruitEstimate& f) {
   const Superellipsoid& s = f.shape;
-  std::ostringstream os;
-  os << "{\"id\": " << f.id << ", \"n_points\": " << f.n_points
-     << ", \"center\": " << vec3(s.t) << ", \"a\": " << jsonNumber(s.a)
-     << ", \"b\": " << jsonNumber(s.b) << ", \"c\": " << jsonNumber(s.c)
-     << ", \"e1\": " << jsonNumber(s.e1) << ", \"e2\": " << jsonNumber(s.e2)
-     << ", \"rpy\": " << vec3(s.rpy) << ", \"volume_m3\": " << jsonNumber(f.volume)
-     << ", \"bbox_volume_m3\": " << jsonNumber(f.bbox_volume)
-     << ", \"converged\": " << (f.converged ? "true" : "false")
-     << ", \"accepted\": " << (f.accepted ? "true" : "false")
-     << ", \"rejected_reason\": " << (f.accepted ? "null" : jsonString(f.reason))
-     << ", \"rms_m\": " << jsonNumber(f.rms) << ", \"iterations\": " << f.iterations
-     << ", \"fit_ms\": " << jsonNumber(f.fit_seconds * 1000.0)
-     << ", \"missing_surface_points\": " << f.missing_surface.size() << "}";
-  return os.str();
+  return {{"id", f.id},
+          {"n_points", f.n_points},
+          {"center", vec3(s.t)},
+          {"a", s.a},
+          {"b", s.b},
+          {"c", s.c},
+          {"e1", s.e1},
+          {"e2", s.e2},
+          {"rpy", vec3(s.rpy)},
+          {"volume_m3", f.volume},
+          {"bbox_volume_m3", f.bbox_volume},
+          {"converged", f.converged},
+          {"accepted", f.accepted},
+          {"rejected_reason", f.accepted ? nlohmann::json() : nlohmann::json(f.reason)},
+          {"rms_m", f.rms},
+          {"iterations", f.iterations},
+          {"fit_ms", f.fit_seconds * 1000.0},
+          {"missing_surface_points", f.missing_surface.size()}};
 }
 
 void printFruitTable(std::ostream& os, const std::vector<FruitEstimate>& fruits) {

@@ -5,33 +5,25 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 
-#include <cstring>
+#include "command_line.h"
+
 #include <iostream>
 
 #include "fruit_report.h"
 
 using namespace fruit_shape_completion;
 
-namespace {
-int usage(const std::string& why) {
-  if (!why.empty()) std::cerr << "map_tool: " << why << "\n";
-  std::cerr << "usage: map_tool --map FILE.tsdf [--surface-out F.ply] [--mesh-out F.ply] [--fit] [--json]\n";
-  return 2;
-}
-}  // namespace
-
 int main(int argc, char** argv) {
   std::string map_file, surface_out, mesh_out;
   bool fit = false, json = false;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--map") && i + 1 < argc) map_file = argv[++i];
-    else if (!std::strcmp(argv[i], "--surface-out") && i + 1 < argc) surface_out = argv[++i];
-    else if (!std::strcmp(argv[i], "--mesh-out") && i + 1 < argc) mesh_out = argv[++i];
-    else if (!std::strcmp(argv[i], "--fit")) fit = true;
-    else if (!std::strcmp(argv[i], "--json")) json = true;
-    else return usage(std::string("unknown or incomplete argument '") + argv[i] + "'");
-  }
-  if (map_file.empty()) return usage("--map is required");
+  CLI::App app("Inspects a saved TSDF fruit map: its size, its surface and the superellipsoids fitted to it.",
+               "map_tool");
+  app.add_option("--map", map_file, "FILE.tsdf (save_map, demo_mapping --save-map)")->required();
+  app.add_option("--surface-out", surface_out, "PLY of the surface points");
+  app.add_option("--mesh-out", mesh_out, "PLY mesh of the surface (marching cubes)");
+  app.add_flag("--fit", fit, "fit the fruits and list them");
+  app.add_flag("--json", json, "one JSON object on stdout");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   TsdfMap map;
   std::string err;
   if (!map.load(map_file, &err)) {
@@ -56,11 +48,11 @@ int main(int argc, char** argv) {
     fruits = pipeline.update(surface);
   }
   if (json) {
-    std::cout << "{\"blocks\": " << map.blockCount() << ", \"observed_voxels\": " << map.observedVoxelCount()
-              << ", \"surface_points\": " << surface.size() << ", \"memory_bytes\": " << map.memoryBytes()
-              << ", \"fruits\": [";
-    for (std::size_t i = 0; i < fruits.size(); ++i) std::cout << (i ? ", " : "") << fruitJson(fruits[i]);
-    std::cout << "]}\n";
+    nlohmann::json out = {{"blocks", map.blockCount()},        {"observed_voxels", map.observedVoxelCount()},
+                          {"surface_points", surface.size()},   {"memory_bytes", map.memoryBytes()},
+                          {"fruits", nlohmann::json::array()}};
+    for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
+    std::cout << out.dump() << "\n";
   } else if (fit) {
     printFruitTable(std::cout, fruits);
   }

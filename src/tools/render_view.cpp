@@ -17,6 +17,8 @@
 
 #include <cmath>
 #include <cstring>
+#include "command_line.h"
+
 #include <iostream>
 #include <sstream>
 
@@ -27,33 +29,21 @@ int main(int argc, char** argv) {
   std::string spec, camera_arg, out;
   DepthNoise noise;
   std::string profile = "paper";
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--scene") && i + 1 < argc) spec = argv[++i];
-    else if (!std::strcmp(argv[i], "--camera") && i + 1 < argc) camera_arg = argv[++i];
-    else if (!std::strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
-    else if (!std::strcmp(argv[i], "--no-noise")) noise.enabled = false;
-    else if (!std::strcmp(argv[i], "--profile") && i + 1 < argc) profile = argv[++i];
-    else if (!std::strcmp(argv[i], "--seed") && i + 1 < argc) noise.seed = std::strtoul(argv[++i], nullptr, 10);
-    else {
-      std::cerr << "usage: render_view --scene FILE|procedural[:SEED] --camera x,y,z,look_x,look_y,look_z --out DIR "
-                   "[--profile paper|ideal] [--no-noise] [--seed N]\n";
-      return 2;
-    }
-  }
-  if (profile != "paper" && profile != "ideal") {
-    std::cerr << "render_view: --profile must be paper or ideal\n";
-    return 2;
-  }
+  CLI::App app("Renders one RGB-D view of a scene (PNG images, PLY clouds, the fruit mask).", "render_view");
+  app.add_option("--scene", spec, "scene file, or procedural[:SEED]")->required();
+  app.add_option("--camera", camera_arg, "x,y,z,look_x,look_y,look_z (default: the scene's start view)");
+  app.add_option("--out", out, "output directory")->required();
+  app.add_option("--profile", profile, "paper (textures, the paper's noise, pointcloud_roi's red test) or ideal")
+      ->check(CLI::IsMember({"paper", "ideal"}))->capture_default_str();
+  app.add_flag_callback("--no-noise", [&] { noise.enabled = false; }, "noise-free depth");
+  app.add_option("--seed", noise.seed, "depth-noise seed");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   const bool paper = profile == "paper";
   Shading shading;
   shading.textures = paper;
   if (paper) noise.model = DepthNoise::Model::kPaper;
   RedThreshold red_test;
   if (paper) red_test.test = RedThreshold::Test::kUpstream;
-  if (spec.empty() || out.empty()) {
-    std::cerr << "render_view: --scene and --out are required\n";
-    return 2;
-  }
   Scene scene;
   std::string err;
   if (!loadSceneSpec(spec, &scene, &err)) {

@@ -9,6 +9,9 @@
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
 
+#include "command_line.h"
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
 
 #include <atomic>
@@ -22,7 +25,6 @@
 #include <stdexcept>
 #include <thread>
 
-#include "fruit_report.h"
 
 using namespace fruit_shape_completion;
 using namespace fruit_shape_completion::planner;
@@ -71,18 +73,17 @@ SubsetSeries series(const std::vector<const Evaluation*>& evals, int s) {
 }
 
 // {"all": {"fruits": {...}, "center_error_cm": {...}, "accuracy": {...}}, "ma0": ..., "ma50": ...}
-std::string subsetsJson(const std::vector<const Evaluation*>& evals) {
-  std::string out = "{";
+nlohmann::json subsetsJson(const std::vector<const Evaluation*>& evals) {
+  auto ms = [](const std::vector<double>& v) {
+    const MeanStd m = meanStd(v);
+    return nlohmann::json{{"mean", m.mean}, {"std", m.std}};
+  };
+  nlohmann::json out = nlohmann::json::object();
   for (int s = 0; s < 3; ++s) {
     const SubsetSeries v = series(evals, s);
-    auto ms = [](const std::vector<double>& v) {
-      const MeanStd m = meanStd(v);
-      return "{\"mean\": " + jsonNumber(m.mean) + ", \"std\": " + jsonNumber(m.std) + "}";
-    };
-    out += std::string(s ? ", " : "") + "\"" + kSubsets[s] + "\": {\"fruits\": " + ms(v.fruits) +
-           ", \"center_error_cm\": " + ms(v.error) + ", \"accuracy\": " + ms(v.accuracy) + "}";
+    out[kSubsets[s]] = {{"fruits", ms(v.fruits)}, {"center_error_cm", ms(v.error)}, {"accuracy", ms(v.accuracy)}};
   }
-  return out + "}";
+  return out;
 }
 
 void printTable(const char* title, const std::vector<const Evaluation*>& old_e, const std::vector<const Evaluation*>& se_e) {
@@ -109,62 +110,53 @@ int main(int argc, char** argv) {
   std::string input_name = "camera";
   SuperellipsoidEstimatorParams estimator;
   bool flat_colours = false;
-  for (int i = 1; i < argc; ++i) {
-    auto need = [&](const char* flag) { return !std::strcmp(argv[i], flag) && i + 1 < argc; };
-    if (need("--scene")) spec = argv[++i];
-    else if (need("--trials")) trials = std::atoi(argv[++i]);
-    else if (need("--duration")) base.duration = std::atof(argv[++i]);
-    else if (need("--seed")) base.seed = std::strtoul(argv[++i], nullptr, 10);
-    else if (need("--out")) out = argv[++i];
-    else if (need("--jobs")) jobs = std::atoi(argv[++i]);
-    else if (need("--input")) input_name = argv[++i];
-    else if (!std::strcmp(argv[i], "--no-depth-edges")) estimator.input.drop_depth_edges = false;
-    else if (need("--input-outliers")) {  // K,STD_MUL,RADIUS
-      auto& o = estimator.input.outliers;
-      estimator.input.remove_outliers = true;
-      if (std::sscanf(argv[++i], "%d,%lf,%lf", &o.k, &o.std_mul, &o.search_radius) != 3) {
-        std::cerr << "run_trials: --input-outliers takes K,STD_MUL,RADIUS (e.g. 5,1.0,0.005)\n";
-        return 2;
-      }
-    }
-    else if (!std::strcmp(argv[i], "--no-veil")) estimator.input.drop_veil_points = false;
-    else if (need("--profile")) profile = argv[++i];
-    else if (need("--red-test")) red_test = argv[++i];
-    else if (need("--velocity-scaling")) velocity_scaling = std::atof(argv[++i]);
-    else if (need("--plan-overhead")) plan_overhead = std::atof(argv[++i]);
-    else if (!std::strcmp(argv[i], "--no-shape-targets")) base.shape_targets = false;
-    else if (!std::strcmp(argv[i], "--no-noise")) base.depth_noise = false;
-    else if (!std::strcmp(argv[i], "--flat-colours")) flat_colours = true;
-    else if (!std::strcmp(argv[i], "--json")) json = true;
-    else {
-      std::cerr << "usage: run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K] "
-                   "[--profile paper|ideal] [--red-test hsv|upstream] [--flat-colours] [--no-shape-targets] [--no-noise]\n"
-                   "[--input camera|roi|fruit-cloud] [--no-depth-edges] [--input-outliers K,STD,R] [--no-veil] [--out DIR] [--json] [--jobs J]\n"
-                   "  --profile paper  (default) the paper's depth noise and blur, estimator every 3 s, compute time on the\n"
-                   "                   clock, no ground truth in planning, the scene's UR5e carries the camera, textured\n"
-                   "                   and lit plants, pointcloud_roi's HSI red test\n"
-                   "  --profile ideal  flat colours lit from the camera, i.i.d. depth noise, a free-flying camera\n"
-                   "  --red-test hsv|upstream  this simulator's HSV test (ideal) or pointcloud_roi's HSI test (paper)\n"
-                   "  --flat-colours   the scene files' flat material colours instead of the textures\n"
-                   "  --velocity-scaling S  the arm's share of its rated joint speed and acceleration (paper profile: 0.5)\n"
-                   "  --plan-overhead S     seconds per plan besides motion and compute (ideal: 2, paper: 1.5)\n"
-                   "  --input camera       (default) the camera's organized cloud through the plugin's whole input stage\n"
-                   "  --input roi          pointcloud_roi's 1 cm PointcloudWithRoi, what the patched planner hands over\n"
-                   "  --input fruit-cloud  full-resolution red points without depth-edge removal (fruit_cloud_topic)\n"
-                   "  --no-depth-edges, --no-veil  switch off a step of the input stage\n"
-                   "  --input-outliers K,STD_MUL,RADIUS  switch on the input stage's outlier filter (off by default)\n"
-                   "  --out DIR        where the CSV and JSON files go (default results/<scene>-<input>-<profile>)\n";
+  CLI::App app("Episodes of the viewpoint planner on a scene; Old (ROI octree boxes) and SE (superellipsoids)\n"
+               "evaluated side by side after every view, as in the paper's tables.", "run_trials");
+  app.add_option("--scene", spec, "scene file, or procedural[:SEED]")->required();
+  app.add_option("--trials", trials, "episodes")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--duration", base.duration, "simulated seconds per episode")
+      ->check(CLI::Range(1e-3, 1e6))->capture_default_str();
+  app.add_option("--seed", base.seed, "seed of the first trial (trial k: seed + k)")->capture_default_str();
+  app.add_option("--out", out, "where the CSV and JSON files go (default results/<scene>-<input>-<profile>)");
+  app.add_option("--jobs", jobs, "episodes at a time (0: one per core)")->check(CLI::Range(0, 256));
+  app.add_option("--input", input_name,
+                 "what the plugin is fed: camera (the organized cloud through the whole input stage), roi\n"
+                 "(pointcloud_roi's 1 cm PointcloudWithRoi), fruit-cloud (full-resolution red points, no\n"
+                 "depth-edge removal)")
+      ->check(CLI::IsMember({"camera", "roi", "fruit-cloud"}))->capture_default_str();
+  app.add_flag_callback("--no-depth-edges", [&] { estimator.input.drop_depth_edges = false; },
+                        "keep fruit pixels at depth edges");
+  std::string outliers;
+  app.add_option("--input-outliers", outliers, "K,STD_MUL,RADIUS: the input stage's outlier filter on (off by default)");
+  app.add_flag_callback("--no-veil", [&] { estimator.input.drop_veil_points = false; },
+                        "keep the veil points of 1 cm views");
+  app.add_option("--profile", profile,
+                 "paper: the paper's depth noise and blur, a fit every 3 s beside the planner, compute time on\n"
+                 "the clock, the scene's UR5e, textured plants, pointcloud_roi's HSI red test; ideal: flat\n"
+                 "colours, i.i.d. depth noise, a free-flying camera")
+      ->check(CLI::IsMember({"paper", "ideal"}))->capture_default_str();
+  app.add_option("--red-test", red_test, "hsv (this simulator's) or upstream (pointcloud_roi's HSI); default: the profile's")
+      ->check(CLI::IsMember({"hsv", "upstream"}));
+  app.add_option("--velocity-scaling", velocity_scaling, "the arm's share of its rated joint speed (paper profile: 0.5)")
+      ->check(CLI::Range(1e-3, 1.0));
+  app.add_option("--plan-overhead", plan_overhead, "seconds per plan besides motion and compute (ideal: 2, paper: 1.5)")
+      ->check(CLI::Range(0.0, 1e3));
+  app.add_flag_callback("--no-shape-targets", [&] { base.shape_targets = false; },
+                        "do not hand the predicted surface to the planner");
+  app.add_flag_callback("--no-noise", [&] { base.depth_noise = false; }, "noise-free depth");
+  app.add_flag("--flat-colours", flat_colours, "the scene files' flat colours instead of the textures");
+  app.add_flag("--json", json, "print results.json to stdout");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
+  if (!outliers.empty()) {
+    auto& o = estimator.input.outliers;
+    estimator.input.remove_outliers = true;
+    char rest = 0;
+    if (std::sscanf(outliers.c_str(), "%d,%lf,%lf%c", &o.k, &o.std_mul, &o.search_radius, &rest) != 3) {
+      std::cerr << "run_trials: --input-outliers takes K,STD_MUL,RADIUS (e.g. 5,1.0,0.005), not '" << outliers << "'\n";
       return 2;
     }
   }
-  if (spec.empty()) {
-    std::cerr << "run_trials: --scene is required\n";
-    return 2;
-  }
-  if (!parseInput(input_name, &base.input)) {
-    std::cerr << "run_trials: --input must be camera, roi or fruit-cloud, not '" << input_name << "'\n";
-    return 2;
-  }
+  parseInput(input_name, &base.input);
   if (profile == "paper") {
     base = paperProfile(base);
   } else if (profile != "ideal") {
@@ -189,10 +181,6 @@ int main(int argc, char** argv) {
   }
   if (const std::string bad = base.problem(); !bad.empty()) {
     std::cerr << "run_trials: " << bad << "\n";
-    return 2;
-  }
-  if (trials < 1 || trials > 1000 || !(base.duration > 0) || !std::isfinite(base.duration)) {
-    std::cerr << "run_trials: --trials must be 1..1000 and --duration a positive number of seconds\n";
     return 2;
   }
   sim::Scene scene;
@@ -307,26 +295,27 @@ int main(int argc, char** argv) {
   }
   const MeanStd reach = meanStd(reachable);
   std::ofstream js(out + "/results.json");
-  std::ostringstream body;
-  body << "{\"scene\": " << jsonString(scene.name) << ", \"profile\": " << jsonString(profile) << ", \"red_test\": " << jsonString(red_test) << ", \"textures\": " << (base.textures ? "true" : "false") << ", \"trials\": " << trials << ", \"duration_s\": "
-       << jsonNumber(base.duration) << ", \"shape_targets\": " << (base.shape_targets ? "true" : "false")
-       << ", \"input\": " << jsonString(input_name) << ", \"input_stage\": {\"depth_edges\": "
-       << (estimator.input.drop_depth_edges ? "true" : "false") << ", \"outliers\": "
-       << (estimator.input.remove_outliers ? "true" : "false") << ", \"veil\": " << (estimator.input.drop_veil_points ? "true" : "false")
-       << "}" << ", \"truth_fruits\": " << truth.enclosed.size() << ", \"unscored_fruits\": " << truth.not_scored.size() << ", \"views_per_trial\": " << jsonNumber(meanStd(views_per).mean)
-       << ", \"wall_s_per_trial\": " << jsonNumber(meanStd(wall).mean) << ", \"robot\": "
-       << jsonString(base.arm ? scene.robot.describe() : "none (free camera)") << ", \"velocity_scaling\": "
-       << jsonNumber(base.arm ? base.arm_motion.velocity_scaling : 0.0) << ", \"plan_overhead_s\": " << jsonNumber(base.view_cost);
-  if (base.arm)
-    body << ", \"reachable_fraction\": {\"mean\": " << jsonNumber(reach.mean) << ", \"std\": " << jsonNumber(reach.std)
-         << "}, \"unreachable\": {\"sampled\": " << sampled << ", \"no_inverse\": " << ik << ", \"joint_limits\": " << limits
-         << ", \"collision\": " << collision << "}, \"failed_moves_per_trial\": " << jsonNumber(double(failed_moves) / trials);
+  nlohmann::json body = {
+      {"scene", scene.name}, {"profile", profile}, {"red_test", red_test}, {"textures", base.textures},
+      {"trials", trials}, {"duration_s", base.duration}, {"shape_targets", base.shape_targets},
+      {"input", input_name},
+      {"input_stage", {{"depth_edges", estimator.input.drop_depth_edges}, {"outliers", estimator.input.remove_outliers},
+                       {"veil", estimator.input.drop_veil_points}}},
+      {"truth_fruits", truth.enclosed.size()}, {"unscored_fruits", truth.not_scored.size()},
+      {"views_per_trial", meanStd(views_per).mean}, {"wall_s_per_trial", meanStd(wall).mean},
+      {"robot", base.arm ? scene.robot.describe() : "none (free camera)"},
+      {"velocity_scaling", base.arm ? base.arm_motion.velocity_scaling : 0.0}, {"plan_overhead_s", base.view_cost}};
+  if (base.arm) {
+    body["reachable_fraction"] = {{"mean", reach.mean}, {"std", reach.std}};
+    body["unreachable"] = {{"sampled", sampled}, {"no_inverse", ik}, {"joint_limits", limits}, {"collision", collision}};
+    body["failed_moves_per_trial"] = double(failed_moves) / trials;
+  }
   for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0)}) {
-    body << ", \"" << label << "\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_true))
-         << ", \"se\": " << subsetsJson(collect(t, &ViewRecord::se_true))
-         << ", \"against_se_truth\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_se))
-         << ", \"se\": " << subsetsJson(collect(t, &ViewRecord::se_se)) << "}"
-         << ", \"against_box_truth\": {\"old\": " << subsetsJson(collect(t, &ViewRecord::old_box)) << "}}";
+    body[label] = {{"old", subsetsJson(collect(t, &ViewRecord::old_true))},
+                   {"se", subsetsJson(collect(t, &ViewRecord::se_true))},
+                   {"against_se_truth",
+                    {{"old", subsetsJson(collect(t, &ViewRecord::old_se))}, {"se", subsetsJson(collect(t, &ViewRecord::se_se))}}},
+                   {"against_box_truth", {{"old", subsetsJson(collect(t, &ViewRecord::old_box))}}}};
   }
   std::string messages;
   for (const auto& r : results)
@@ -339,16 +328,18 @@ int main(int argc, char** argv) {
     if (r.mask_negatives > 0) fp_rate.push_back(double(r.mask_false_positives) / double(r.mask_negatives));
   }
   const MeanStd fn = meanStd(fn_rate), fp = meanStd(fp_rate);
-  body << ", \"mask_false_negative_rate\": {\"mean\": " << jsonNumber(fn.mean) << ", \"std\": " << jsonNumber(fn.std)
-       << "}, \"mask_false_positive_rate\": {\"mean\": " << jsonNumber(fp.mean) << ", \"std\": " << jsonNumber(fp.std) << "}";
-  body << ", \"dropped_views\": " << dropped << ", \"messages\": " << jsonString(messages) << "}\n";
-  js << body.str();
+  body["mask_false_negative_rate"] = {{"mean", fn.mean}, {"std", fn.std}};
+  body["mask_false_positive_rate"] = {{"mean", fp.mean}, {"std", fp.std}};
+  body["dropped_views"] = dropped;
+  body["messages"] = messages;
+  const std::string text = body.dump() + "\n";
+  js << text;
   if (!js) {
     std::cerr << "run_trials: cannot write " << out << "/results.json\n";
     return 1;
   }
   if (json) {
-    std::cout << body.str();
+    std::cout << text;
   } else {
     std::printf("%s: %zu red ground-truth fruits scored (%zu of other colours not), %d trials of %.0f s (simulated), shape targets %s, %.1f views and %.1f s wall per trial\n",
                 scene.name.c_str(), truth.enclosed.size(), truth.not_scored.size(), trials, base.duration, base.shape_targets ? "on" : "off",

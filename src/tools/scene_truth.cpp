@@ -3,11 +3,11 @@
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
 
-#include <cstdio>
-#include <cstring>
-#include <iostream>
+#include "command_line.h"
+#include <nlohmann/json.hpp>
 
-#include "fruit_report.h"
+#include <cstdio>
+#include <iostream>
 
 using namespace fruit_shape_completion;
 using namespace fruit_shape_completion::sim;
@@ -15,19 +15,11 @@ using namespace fruit_shape_completion::sim;
 int main(int argc, char** argv) {
   std::string spec, write_dir;
   bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--scene") && i + 1 < argc) spec = argv[++i];
-    else if (!std::strcmp(argv[i], "--json")) json = true;
-    else if (!std::strcmp(argv[i], "--write-scene") && i + 1 < argc) write_dir = argv[++i];
-    else {
-      std::cerr << "usage: scene_truth --scene FILE|procedural[:SEED] [--json] [--write-scene DIR]\n";
-      return 2;
-    }
-  }
-  if (spec.empty()) {
-    std::cerr << "scene_truth: --scene is required\n";
-    return 2;
-  }
+  CLI::App app("The ground-truth fruits of a scene.", "scene_truth");
+  app.add_option("--scene", spec, "scene file, or procedural[:SEED]")->required();
+  app.add_flag("--json", json, "one JSON object on stdout");
+  app.add_option("--write-scene", write_dir, "also write the scene (OBJ + YAML) into this directory");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   Scene scene;
   std::string err;
   if (!loadSceneSpec(spec, &scene, &err)) {
@@ -42,15 +34,15 @@ int main(int argc, char** argv) {
   std::cerr << "scene_truth: " << scene.name << ": " << scene.plants.size() << " plants, "
             << scene.triangles.size() << " triangles, " << fruits.size() << " fruits\n";
   if (json) {
-    std::cout << "{\"scene\": " << jsonString(scene.name) << ", \"fruits\": [";
-    for (std::size_t i = 0; i < fruits.size(); ++i) {
-      const FruitTruth& f = fruits[i];
-      std::cout << (i ? ", " : "") << "{\"id\": " << f.id << ", \"plant\": " << f.plant << ", \"center\": ["
-                << jsonNumber(f.center.x()) << ", " << jsonNumber(f.center.y()) << ", " << jsonNumber(f.center.z())
-                << "], \"volume_m3\": " << jsonNumber(f.volume) << ", \"se_volume_m3\": " << jsonNumber(f.se_volume)
-                << ", \"color\": " << jsonString(f.color) << "}";
-    }
-    std::cout << "]}\n";
+    nlohmann::json out = {{"scene", scene.name}, {"fruits", nlohmann::json::array()}};
+    for (const FruitTruth& f : fruits)
+      out["fruits"].push_back({{"id", f.id},
+                               {"plant", f.plant},
+                               {"center", {f.center.x(), f.center.y(), f.center.z()}},
+                               {"volume_m3", f.volume},
+                               {"se_volume_m3", f.se_volume},
+                               {"color", f.color}});
+    std::cout << out.dump() << "\n";
   } else {
     std::printf("%4s %5s %28s %10s %10s %7s\n", "id", "plant", "centre [m]", "V [cm3]", "V_SE [cm3]", "colour");
     for (const auto& f : fruits)

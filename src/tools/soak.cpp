@@ -16,6 +16,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include "command_line.h"
+
 #include <iostream>
 #include <random>
 
@@ -41,23 +43,15 @@ int main(int argc, char** argv) {
   std::string spec, out = "soak.csv";
   long views = 10000, sample_every = 100;
   int episodes = 4;
-  for (int i = 1; i < argc; ++i) {
-    auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
-    const char* v = nullptr;
-    if (!std::strcmp(argv[i], "--scene") && (v = next())) spec = v;
-    else if (!std::strcmp(argv[i], "--views") && (v = next())) views = std::atol(v);
-    else if (!std::strcmp(argv[i], "--episodes") && (v = next())) episodes = std::atoi(v);
-    else if (!std::strcmp(argv[i], "--sample-every") && (v = next())) sample_every = std::atol(v);
-    else if (!std::strcmp(argv[i], "--out") && (v = next())) out = v;
-    else {
-      std::cerr << "usage: soak [--scene FILE|procedural[:SEED]] [--views N] [--episodes E] [--sample-every K] [--out F.csv]\n";
-      return 2;
-    }
-  }
-  if (views < 1 || episodes < 1 || sample_every < 1) {
-    std::cerr << "soak: --views, --episodes and --sample-every must be positive\n";
-    return 2;
-  }
+  CLI::App app("Soak test of the estimator as the planner hosts it: many views into one estimator, never reset,\n"
+               "sampling the process's resident memory.", "soak");
+  app.add_option("--scene", spec, "scene file, or procedural[:SEED] (default: scenario 2 in ../shared/data)");
+  app.add_option("--views", views, "views in all")->check(CLI::Range(1L, 100000000L))->capture_default_str();
+  app.add_option("--episodes", episodes, "episodes recorded and replayed")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--sample-every", sample_every, "views between memory samples")->check(CLI::Range(1L, 100000000L))
+      ->capture_default_str();
+  app.add_option("--out", out, "CSV of the samples")->capture_default_str();
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   if (spec.empty()) {
     const char* env = std::getenv("FSC_SHARED_DATA");
     spec = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";

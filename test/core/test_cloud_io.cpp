@@ -1,6 +1,7 @@
 #include <fruit_shape_completion/cloud_io.h>
 #include <fruit_shape_completion/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <sys/wait.h>
 #include <unistd.h>
@@ -255,13 +256,13 @@ TEST(FitCloudTool, JsonOutputMatchesTheFruitInTheFile) {
       run(fitCloudExe() + " --input " + input + " --json --surface-out " + surface + " 2>/dev/null");
   ASSERT_EQ(r.status, 0) << r.out;
   // One fruit, and its volume is the truth's within 5 %.
-  EXPECT_EQ(r.out.find("\"id\""), r.out.rfind("\"id\"")) << r.out;
-  const auto pos = r.out.find("\"volume_m3\": ");
-  ASSERT_NE(pos, std::string::npos) << r.out;
-  const double volume = std::strtod(r.out.c_str() + pos + 13, nullptr);
-  EXPECT_NEAR(volume, truth.volume(), 0.05 * truth.volume()) << r.out;
-  EXPECT_NE(r.out.find("\"non_finite_points\": 1"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("\"converged\": true"), std::string::npos) << r.out;
+  const nlohmann::json out = nlohmann::json::parse(r.out);
+  ASSERT_EQ(out.at("fruits").size(), 1u) << r.out;
+  const nlohmann::json& fruit = out["fruits"][0];
+  EXPECT_NEAR(fruit.at("volume_m3").get<double>(), truth.volume(), 0.05 * truth.volume()) << r.out;
+  EXPECT_EQ(out.at("non_finite_points").get<int>(), 1) << r.out;
+  EXPECT_TRUE(fruit.at("converged").get<bool>()) << r.out;
+  EXPECT_TRUE(fruit.at("rejected_reason").is_null()) << r.out;
   // The surface file holds the 300 samples of the fit, on the true surface.
   const CloudFile s = readPointCloud(surface);
   ASSERT_TRUE(s.ok()) << s.error;
@@ -276,13 +277,38 @@ TEST(FitCloudTool, BadFilesAndArgumentsFailWithAMessage) {
   CommandResult r = run(exe + " --input /nonexistent/cloud.pcd 2>&1");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find("cannot open"), std::string::npos) << r.out;
-  r = run(exe + " --bogus 2>&1");
+  r = run(exe + " --input " + tempPath("any.pcd") + " --bogus 2>&1");
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.out.find("usage"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--bogus"), std::string::npos) << r.out;
+  r = run(exe + " 2>&1");  // --input missing
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("--input"), std::string::npos) << r.out;
+  r = run(exe + " --help 2>&1");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.out.find("--surface-out"), std::string::npos) << r.out;
   const std::string empty = tempPath("empty.txt");
   writeFile(empty, "");
   r = run(exe + " --input " + empty + " --json 2>/dev/null");
   EXPECT_EQ(r.status, 0);
-  EXPECT_NE(r.out.find("\"fruits\": []"), std::string::npos) << r.out;
+  EXPECT_TRUE(nlohmann::json::parse(r.out).at("fruits").empty()) << r.out;
   std::remove(empty.c_str());
+}
+
+// A mistyped value never runs with a silently read number: the tool names the option, says what
+// is wrong and exits with 2 (run_trials, as a new user would mistype it).
+TEST(ToolCommandLines, BadValuesNameTheOptionAndFail) {
+  const char* dir = std::getenv("FSC_BIN_DIR");
+  const std::string exe = std::string(dir ? dir : ".") + "/run_trials --scene procedural:1 --trials 1 ";
+  const std::pair<std::string, std::string> cases[] = {
+      {"--duration 2x", "--duration"},  {"--jobs 1O", "--jobs"},           {"--duration -5", "--duration"},
+      {"--trials 0", "--trials"},       {"--input rgb", "--input"},       {"--frobnicate", "--frobnicate"},
+      {"--profile Paper", "--profile"}, {"--input-outliers 5,1", "--input-outliers"}};
+  for (const auto& [args, option] : cases) {
+    const CommandResult r = run(exe + args + " 2>&1");
+    EXPECT_EQ(r.status, 2) << args << ": " << r.out;
+    EXPECT_NE(r.out.find(option), std::string::npos) << args << ": " << r.out;
+  }
+  const CommandResult help = run(std::string(dir ? dir : ".") + "/run_trials --help 2>&1");
+  EXPECT_EQ(help.status, 0);
+  EXPECT_NE(help.out.find("--velocity-scaling"), std::string::npos) << help.out;
 }

@@ -5,6 +5,7 @@
 // refused with a message.
 #include <fruit_shape_completion/planner/superellipsoid_estimator.h>
 #include <fruit_shape_completion/ros/camera_frames.h>
+#include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/sim/fruit_truth.h>
 #include <fruit_shape_completion/sim/procedural_scene.h>
 #include <fruit_shape_completion/sim/rgbd_renderer.h>
@@ -163,4 +164,24 @@ TEST(CameraFrameBuffer, WaitsBrieflyForAFrameThatHasNotArrivedYet) {
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
   // Without a wait, a missing frame is missing.
   EXPECT_EQ(buffer.take(ros::Time(4.0), 0.01), nullptr);
+}
+
+// A detector with nothing to report publishes an empty cloud (width 0): no points, indices into
+// it counted as bad, and no read of point 0 of an empty buffer (found by fuzz_camera_cloud).
+TEST(CloudReaders, EmptyCloudsGiveNoPointsAndCountTheirIndices) {
+  sensor_msgs::PointCloud2 empty = ros_io::toCloud(PointList(), "camera", ros::Time(1.0));
+  ASSERT_EQ(empty.width * empty.height, 0u);
+  PointList points, all, fruit;
+  std::size_t non_finite = 7, bad = 0;
+  std::string error;
+  EXPECT_TRUE(ros_io::fromCloud(empty, &points, &non_finite, &error)) << error;
+  EXPECT_TRUE(points.empty());
+  EXPECT_EQ(non_finite, 0u);
+  EXPECT_TRUE(ros_io::fromRoiCloud(empty, {0, 3, -1}, &all, &fruit, &bad, &error)) << error;
+  EXPECT_TRUE(all.empty() && fruit.empty());
+  EXPECT_EQ(bad, 3u);
+  // Eight rows of nothing: the same.
+  empty.height = 8;
+  EXPECT_TRUE(ros_io::fromCloud(empty, &points, &non_finite, &error)) << error;
+  EXPECT_TRUE(points.empty());
 }
