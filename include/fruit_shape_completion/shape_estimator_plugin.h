@@ -1,9 +1,9 @@
 #pragma once
 // The pluginlib base class of shape estimators, loaded by the planner by type name, e.g.
 //   shape_estimators: [{name: superellipsoid, type: fruit_shape_completion/SuperellipsoidEstimator}]
-// It adds ROS initialisation to planner::ShapeEstimator (insert view, update, fruits, extra
+// It adds ROS initialisation to host::ShapeEstimator (insert view, update, fruits, extra
 // targets, reset).
-#include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/host/shape_estimator.h>
 
 #include <ros/node_handle.h>
 
@@ -13,7 +13,7 @@
 
 namespace fruit_shape_completion {
 
-class ShapeEstimatorPlugin : public planner::ShapeEstimator {
+class ShapeEstimatorPlugin : public host::ShapeEstimator {
  public:
   // `nh` is the plugin's own namespace (e.g. /roi_viewpoint_planner/superellipsoid): parameters
   // are read and topics advertised there. Throws std::runtime_error naming a bad parameter.

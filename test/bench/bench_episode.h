@@ -2,9 +2,9 @@
 // What the per-view benchmarks share: a seeded 120 s planner episode on scenario 2
 // (../shared/data; the procedural glasshouse when it is absent), paper profile, whose views
 // are handed to a callback, and quantiles of per-view times.
-#include <fruit_shape_completion/planner/viewpoint_planner.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -17,7 +17,7 @@ namespace bench {
 
 // Runs the episode; returns the scene it ran on. on_view gets what the estimators would get.
 inline std::string recordEpisode(planner::PlannerParams::Input input,
-                                 const std::function<void(const PinholeCamera&, const planner::ViewData&)>& on_view) {
+                                 const std::function<void(const PinholeCamera&, const host::ViewData&)>& on_view) {
   const char* env = std::getenv("FSC_SHARED_DATA");
   std::string name = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
   sim::Scene scene;
@@ -39,10 +39,10 @@ inline std::string recordEpisode(planner::PlannerParams::Input input,
   sim::Shading shading;
   shading.textures = params.textures;
   const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
-  planner::ShapeEstimatorHost host;  // none: the episode only records what the camera saw
+  host::ShapeEstimatorHost host;  // none: the episode only records what the camera saw
   planner::runEpisode(scene, renderer, truth, host, params,
                       [&](const planner::ViewRecord&, const planner::RoiOcTree&, const sim::RgbdFrame& frame,
-                          const planner::ViewData& view) {
+                          const host::ViewData& view) {
                         on_view(frame.camera, view);
                         return true;
                       });

@@ -4,7 +4,7 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/superellipsoid_fit.h>
 #include <fruit_shape_completion/surface_normals.h>
-#include <fruit_shape_completion/sim/synthetic_fruit.h>
+#include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 
 using namespace fruit_shape_completion;
 

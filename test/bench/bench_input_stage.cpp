@@ -4,9 +4,9 @@
 // Run: scripts/run.sh bench --benchmark_filter=InputStage --benchmark_format=json
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/fruit_input_stage.h>
-#include <fruit_shape_completion/planner/viewpoint_planner.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
 
 #include <pcl/features/organized_edge_detection.h>
 #include <pcl/filters/statistical_outlier_removal.h>
@@ -43,10 +43,10 @@ const Frames& frames() {
     sim::Shading shading;
     shading.textures = params.textures;
     const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
-    planner::ShapeEstimatorHost none;
+    host::ShapeEstimatorHost none;
     planner::runEpisode(scene, renderer, planner::makeSceneTruth(truth_fruits, params.octree_resolution), none, params,
                         [&](const planner::ViewRecord&, const planner::RoiOcTree&, const sim::RgbdFrame&,
-                            const planner::ViewData& view) {
+                            const host::ViewData& view) {
                           out.frames.emplace_back(*view.camera_frame, view.sensor_pose);
                           return true;
                         });

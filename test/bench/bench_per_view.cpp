@@ -6,8 +6,8 @@
 // (../shared/data; the procedural glasshouse when it is absent): the organized frame and the
 // sensor pose of every view, with depth noise. Each iteration replays it into a fresh estimator.
 #include <benchmark/benchmark.h>
-#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
-#include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
+#include <fruit_shape_completion/host/shape_estimator.h>
 
 #include "bench_episode.h"
 
@@ -36,7 +36,7 @@ const Recording& recording() {
   static const Recording rec = [] {
     Recording r;
     r.scene = bench::recordEpisode(planner::PlannerParams::Input::kCamera,
-                                   [&](const PinholeCamera&, const planner::ViewData& view) {
+                                   [&](const PinholeCamera&, const host::ViewData& view) {
                                      r.views.push_back({*view.camera_frame, view.sensor_pose});
                                    });
     return r;
@@ -57,10 +57,10 @@ static void BM_PerViewUpdate(benchmark::State& state) {
   std::size_t fruits = 0, targets = 0, fits = 0, kept = 0, points = 0;
   const PointList none;
   for (auto _ : state) {
-    planner::SuperellipsoidEstimator estimator;
+    host::SuperellipsoidEstimator estimator;
     for (const auto& v : rec.views) {
       const auto t0 = std::chrono::steady_clock::now();
-      planner::ViewData view{none, none, v.pose, 0.0, planner::ViewSource::kCameraFrame};
+      host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
       view.camera_frame = &v.frame;
       estimator.insertView(view);
       integrate_s += estimator.lastIntegration().seconds;
@@ -119,10 +119,10 @@ static void BM_InsertViewLatencyCameraFrame(benchmark::State& state) {
   std::size_t fits = 0, fruits = 0;
   const PointList none;
   for (auto _ : state) {
-    planner::ShapeEstimatorHost host(nullptr, planner::ShapeEstimatorHost::Updates::kBackground);
-    host.add(std::make_unique<planner::SuperellipsoidEstimator>());
+    host::ShapeEstimatorHost host(nullptr, host::ShapeEstimatorHost::Updates::kBackground);
+    host.add(std::make_unique<host::SuperellipsoidEstimator>());
     for (const auto& v : rec.views) {
-      planner::ViewData view{none, none, v.pose, 0.0, planner::ViewSource::kCameraFrame};
+      host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
       view.camera_frame = &v.frame;
       const auto t0 = std::chrono::steady_clock::now();
       host.onView(view);

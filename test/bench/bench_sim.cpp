@@ -1,8 +1,8 @@
 // Simulated camera benchmark. Run: scripts/run.sh bench --benchmark_filter=Render
 #include <benchmark/benchmark.h>
-#include <fruit_shape_completion/sim/fruit_mask.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/rgbd_renderer.h>
+#include <fruit_shape_completion/instrument/sim/fruit_mask.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
 
 #include <cstdlib>
 #include <memory>

@@ -1,6 +1,6 @@
 // TSDF map and point-cloud benchmarks. Run: scripts/run.sh bench --benchmark_filter='Tsdf|FiftyFruit' --benchmark_format=json
 #include <benchmark/benchmark.h>
-#include <fruit_shape_completion/sim/analytic_depth_camera.h>
+#include <fruit_shape_completion/instrument/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/euclidean_clustering.h>
 #include <fruit_shape_completion/missing_surface.h>
 #include <fruit_shape_completion/statistical_outlier_filter.h>

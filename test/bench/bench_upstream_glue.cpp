@@ -5,7 +5,7 @@
 // is a seeded scenario-2 episode (120 s) with depth noise. Needs no ROS master.
 // Run: scripts/run.sh bench --benchmark_filter=UpstreamGlue
 #include <benchmark/benchmark.h>
-#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 
@@ -32,7 +32,7 @@ struct RoiMessage {
 const std::vector<RoiMessage>& roiMessages() {
   static const std::vector<RoiMessage> messages = [] {
     std::vector<RoiMessage> out;
-    bench::recordEpisode(planner::PlannerParams::Input::kRoi, [&](const PinholeCamera&, const planner::ViewData& view) {
+    bench::recordEpisode(planner::PlannerParams::Input::kRoi, [&](const PinholeCamera&, const host::ViewData& view) {
       RoiMessage m;
       const PointList& all = view.full_cloud;
       m.cloud = ros_io::toCloud(all, "world", ros::Time(0));
@@ -58,7 +58,7 @@ static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
   std::vector<double> per_view_ms, read_ms;
   std::size_t fruits = 0, points = 0;
   for (auto _ : state) {
-    planner::SuperellipsoidEstimator estimator;
+    host::SuperellipsoidEstimator estimator;
     for (const auto& m : messages) {
       const auto t0 = std::chrono::steady_clock::now();
       ros_io::RoiView view;
@@ -68,7 +68,7 @@ static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
         return;
       }
       const auto t1 = std::chrono::steady_clock::now();
-      estimator.insertView({view.fruit, view.all, view.sensor_pose, 0.0, planner::ViewSource::kRoiCloud});
+      estimator.insertView({view.fruit, view.all, view.sensor_pose, 0.0, host::ViewSource::kRoiCloud});
       estimator.update();
       const auto t2 = std::chrono::steady_clock::now();
       read_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
@@ -98,8 +98,8 @@ static void BM_InsertViewLatencyRoiCloud(benchmark::State& state) {
   std::vector<double> blocked_ms;
   std::size_t fits = 0, fruits = 0;
   for (auto _ : state) {
-    planner::ShapeEstimatorHost host(nullptr, planner::ShapeEstimatorHost::Updates::kBackground);
-    host.add(std::make_unique<planner::SuperellipsoidEstimator>());
+    host::ShapeEstimatorHost host(nullptr, host::ShapeEstimatorHost::Updates::kBackground);
+    host.add(std::make_unique<host::SuperellipsoidEstimator>());
     for (const auto& m : messages) {
       const auto t0 = std::chrono::steady_clock::now();
       ros_io::RoiView view;
@@ -108,7 +108,7 @@ static void BM_InsertViewLatencyRoiCloud(benchmark::State& state) {
         state.SkipWithError(error.c_str());
         return;
       }
-      host.onView({view.fruit, view.all, view.sensor_pose, 0.0, planner::ViewSource::kRoiCloud});
+      host.onView({view.fruit, view.all, view.sensor_pose, 0.0, host::ViewSource::kRoiCloud});
       blocked_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     }
     host.waitForUpdates(60.0);

@@ -1,5 +1,5 @@
-#include <fruit_shape_completion/cloud_io.h>
-#include <fruit_shape_completion/sim/synthetic_fruit.h>
+#include <fruit_shape_completion/instrument/cloud_io.h>
+#include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 

@@ -2,7 +2,7 @@
 #include <fruit_shape_completion/fruit_center.h>
 #include <fruit_shape_completion/statistical_outlier_filter.h>
 #include <fruit_shape_completion/surface_normals.h>
-#include <fruit_shape_completion/sim/synthetic_fruit.h>
+#include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>

@@ -1,5 +1,5 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
-#include <fruit_shape_completion/sim/synthetic_fruit.h>
+#include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
 #include <limits>

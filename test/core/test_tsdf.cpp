@@ -1,4 +1,4 @@
-#include <fruit_shape_completion/sim/analytic_depth_camera.h>
+#include <fruit_shape_completion/instrument/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/euclidean_clustering.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/tsdf_integrator.h>

@@ -2,7 +2,7 @@
 // The first byte picks the format; the rest is the file.
 #include "fuzz_input_file.h"
 
-#include <fruit_shape_completion/cloud_io.h>
+#include <fruit_shape_completion/instrument/cloud_io.h>
 
 #include <cmath>
 #include <cstdlib>

@@ -5,7 +5,7 @@
 // transform: the map skips and counts them) never gives a non-finite fruit.
 #include "fuzz_cloud_message.h"
 
-#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 
 #include <cstdlib>
@@ -33,8 +33,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   if (view.fruit.size() + view.bad_indices != indices.size()) std::abort();  // every index accounted for
   if (!view.sensor_pose.matrix().allFinite()) std::abort();  // a non-finite transform is refused
-  static planner::SuperellipsoidEstimator estimator;  // one map over all inputs, as in a planner
-  estimator.insertView({view.fruit, view.all, view.sensor_pose, 1.0, planner::ViewSource::kRoiCloud});
+  static host::SuperellipsoidEstimator estimator;  // one map over all inputs, as in a planner
+  estimator.insertView({view.fruit, view.all, view.sensor_pose, 1.0, host::ViewSource::kRoiCloud});
   estimator.update();
   for (const auto& f : estimator.fruits())
     if (!f.center().allFinite() || !std::isfinite(f.volume)) std::abort();

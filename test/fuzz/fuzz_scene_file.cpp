@@ -2,7 +2,7 @@
 // offered as leaf.obj beside the scene so fuzzed scenes can reach the placement checks).
 #include "fuzz_input_file.h"
 
-#include <fruit_shape_completion/sim/scene.h>
+#include <fruit_shape_completion/instrument/sim/scene.h>
 
 #include <cmath>
 #include <cstdlib>

@@ -1,9 +1,9 @@
-#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
-#include <fruit_shape_completion/planner/update_worker.h>
-#include <fruit_shape_completion/planner/viewpoint_planner.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/sim/synthetic_fruit.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
+#include <fruit_shape_completion/host/update_worker.h>
+#include <fruit_shape_completion/instrument/planner/viewpoint_planner.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -17,6 +17,7 @@
 #include <thread>
 
 using namespace fruit_shape_completion;
+using namespace fruit_shape_completion::host;
 using namespace fruit_shape_completion::planner;
 
 // Allocation failure injection: while armed (in the arming thread only), every allocation of

@@ -9,13 +9,13 @@
 // one JSON line with the RSS figures, the service results and the host's last diagnostics.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <fruit_shape_completion/FilePath.h>
-#include <fruit_shape_completion/planner/pointcloud_roi.h>
+#include <fruit_shape_completion/instrument/planner/pointcloud_roi.h>
 #include <fruit_shape_completion/ros/camera_frames.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/upstream_messages.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/sim/rgbd_renderer.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
 
 #include <ros/ros.h>
 #include <std_srvs/Empty.h>

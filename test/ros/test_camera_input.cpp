@@ -3,12 +3,12 @@
 // (a depth_image_proc-style PointCloud2, read back by the plugin's conversion) gives the same
 // fruit cloud and the same map; the frame buffer pairs views with frames; malformed clouds are
 // refused with a message.
-#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/ros/camera_frames.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/sim/rgbd_renderer.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 #include <gtest/gtest.h>
 
@@ -64,9 +64,9 @@ TEST(CameraInput, SimulatorLoopAndPluginRosPathGiveTheSameFruitCloudAndMap) {
   ASSERT_EQ(a.fruit.size(), b.fruit.size());
   for (std::size_t i = 0; i < a.fruit.size(); ++i) ASSERT_EQ(a.fruit[i], b.fruit[i]) << "point " << i;
   // And the estimators fed each way hold the same map.
-  planner::SuperellipsoidEstimator e1, e2;
+  host::SuperellipsoidEstimator e1, e2;
   const PointList none;
-  planner::ViewData v1{none, none, r.pose, 1.0, planner::ViewSource::kCameraFrame}, v2 = v1;
+  host::ViewData v1{none, none, r.pose, 1.0, host::ViewSource::kCameraFrame}, v2 = v1;
   v1.camera_frame = &direct;
   v2.camera_frame = &via_ros;
   e1.insertView(v1);
@@ -164,6 +164,17 @@ TEST(CameraFrameBuffer, WaitsBrieflyForAFrameThatHasNotArrivedYet) {
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
   // Without a wait, a missing frame is missing.
   EXPECT_EQ(buffer.take(ros::Time(4.0), 0.01), nullptr);
+  // An older frame within the tolerance does not stand in for the view's own frame when that
+  // one is still coming (the 30 Hz camera's previous frame is 33 ms away).
+  buffer.push(cloudAt(4.967));
+  std::thread late([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    buffer.push(cloudAt(5.0));
+  });
+  const auto own = buffer.take(ros::Time(5.0), 0.05, 2.0);
+  late.join();
+  ASSERT_NE(own, nullptr);
+  EXPECT_DOUBLE_EQ(own->header.stamp.toSec(), 5.0);
 }
 
 // A detector with nothing to report publishes an empty cloud (width 0): no points, indices into

@@ -5,8 +5,8 @@
 // camera frame, not the 1 cm fallback.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <fruit_shape_completion/SuperellipsoidArray.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <std_msgs/UInt32.h>

@@ -3,16 +3,16 @@
 #include <fruit_shape_completion/SuperellipsoidArray.h>
 #include <std_srvs/Empty.h>
 #include <unistd.h>
-#include <fruit_shape_completion/sim/analytic_depth_camera.h>
+#include <fruit_shape_completion/instrument/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/ros/camera_frames.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 #include <fruit_shape_completion/ros/shape_estimator_loader.h>
 #include <fruit_shape_completion/ros/upstream_messages.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/sim/rgbd_renderer.h>
-#include <fruit_shape_completion/sim/synthetic_fruit.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
+#include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <pcl/filters/voxel_grid.h>
@@ -322,7 +322,7 @@ TEST(Plugin, LoadsByNameThroughPluginlib) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.translation() = Eigen::Vector3d(0, 0.1, 0.5);
   pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
-  plugin->insertView(planner::ViewData{fruit, none, pose, 0.0});
+  plugin->insertView(host::ViewData{fruit, none, pose, 0.0});
   plugin->update();
   ASSERT_EQ(plugin->fruits().size(), 1u);
   EXPECT_NEAR(plugin->fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
@@ -420,7 +420,7 @@ TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
     std::size_t bad = 0;
     std::string err;
     ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
-    plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), stamp.toSec(), planner::ViewSource::kRoiCloud});
+    plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), stamp.toSec(), host::ViewSource::kRoiCloud});
     ++views;
     EXPECT_EQ(count("views fed by their camera frame"), i + 1);
   }
@@ -435,7 +435,7 @@ TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
   std::size_t bad = 0;
   std::string err;
   ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
-  plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), 5000.0, planner::ViewSource::kRoiCloud});
+  plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), 5000.0, host::ViewSource::kRoiCloud});
   EXPECT_EQ(count("views fed by their own (1 cm) cloud: no frame paired"), 1u);
   EXPECT_EQ(count("  of which: no frame within the tolerance"), 1u);
   EXPECT_EQ(count("views"), views + 1);

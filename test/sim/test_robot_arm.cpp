@@ -1,5 +1,5 @@
-#include <fruit_shape_completion/sim/robot_arm.h>
-#include <fruit_shape_completion/sim/scene.h>
+#include <fruit_shape_completion/instrument/sim/robot_arm.h>
+#include <fruit_shape_completion/instrument/sim/scene.h>
 #include <gtest/gtest.h>
 
 #include <cstdio>

@@ -1,8 +1,8 @@
-#include <fruit_shape_completion/sim/fruit_mask.h>
-#include <fruit_shape_completion/sim/fruit_truth.h>
-#include <fruit_shape_completion/sim/image_io.h>
-#include <fruit_shape_completion/sim/procedural_scene.h>
-#include <fruit_shape_completion/sim/rgbd_renderer.h>
+#include <fruit_shape_completion/instrument/sim/fruit_mask.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/image_io.h>
+#include <fruit_shape_completion/instrument/sim/procedural_scene.h>
+#include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
 #include <gtest/gtest.h>
 
 #include <cmath>

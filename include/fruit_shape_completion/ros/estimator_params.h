@@ -3,7 +3,7 @@
 // defaults from the core structs (config/shape_estimators.yaml lists them); a parameter of the
 // wrong type or value, or a key in the namespace that is neither an estimator parameter nor
 // one of `other_keys` (the caller's own), throws std::runtime_error naming it and the valid keys.
-#include <fruit_shape_completion/planner/superellipsoid_estimator.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
 
 #include <ros/node_handle.h>
 
@@ -17,7 +17,7 @@ namespace ros_io {
 // share config/shape_estimators.yaml but have no such inputs accept and ignore them.
 const std::vector<std::string>& pluginInputKeys();
 
-planner::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
+host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& nh,
                                                            const std::vector<std::string>& other_keys = {});
 
 // A string parameter, if present; present with another type throws std::runtime_error naming it.

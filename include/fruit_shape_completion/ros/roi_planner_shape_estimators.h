@@ -51,7 +51,7 @@ class RoiPlannerShapeEstimators {
   bool waitForFits(double seconds) const { return loader_.host().waitForUpdates(seconds); }
   void reset();
 
-  planner::ShapeEstimatorHost& host() { return loader_.host(); }
+  host::ShapeEstimatorHost& host() { return loader_.host(); }
   std::size_t viewsSkipped() const { return views_skipped_; }
   std::size_t indicesSkipped() const { return indices_skipped_; }  // out of range or non-finite points
 

@@ -2,10 +2,10 @@
 // The planner side of the plugin seam: reads the planner's `shape_estimators` parameter, e.g.
 //   shape_estimators: [{name: superellipsoid, type: fruit_shape_completion/SuperellipsoidEstimator}]
 // loads each with pluginlib, initialises it in <planner namespace>/<name>, and adds it to the
-// planner::ShapeEstimatorHost it owns. The upstream roi_viewpoint_planner needs only this and the
+// host::ShapeEstimatorHost it owns. The upstream roi_viewpoint_planner needs only this and the
 // host: after its scan insertion: host().onView(view); before its ROI sampling: host().extraTargets().
 // Publishes each estimator's diagnostics (/diagnostics, once a second): error if disabled.
-#include <fruit_shape_completion/planner/shape_estimator.h>
+#include <fruit_shape_completion/host/shape_estimator.h>
 #include <fruit_shape_completion/shape_estimator_plugin.h>
 
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -23,8 +23,8 @@ class ShapeEstimatorLoader {
   // Throws std::runtime_error with a clear message for a malformed list, an unknown plugin
   // type or a plugin that refuses its parameters.
   void load(ros::NodeHandle& planner_nh, const std::string& map_frame);
-  planner::ShapeEstimatorHost& host() { return host_; }
-  const planner::ShapeEstimatorHost& host() const { return host_; }
+  host::ShapeEstimatorHost& host() { return host_; }
+  const host::ShapeEstimatorHost& host() const { return host_; }
 
  private:
   // Order matters: members are destroyed in reverse, so the plugins (in host_) are destroyed
@@ -33,7 +33,7 @@ class ShapeEstimatorLoader {
   void diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status) const;
 
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader_;
-  planner::ShapeEstimatorHost host_;
+  host::ShapeEstimatorHost host_;
   std::vector<ShapeEstimatorPlugin*> plugins_;  // owned by host_, same order
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
   ros::Timer diagnostics_timer_;

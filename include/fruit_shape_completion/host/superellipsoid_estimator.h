@@ -1,0 +1,96 @@
+#pragma once
+// The superellipsoid shape estimator: TSDF fruit map -> surface -> clusters -> fits ->
+// predicted unseen surface. Thread-safe: views may be inserted from one thread (sensor
+// callbacks) while another (the planner) asks for fruits and targets and a third fits. Every
+// view first goes through the fruit input stage (fruit_input_stage.h) as its source asks.
+// Queries read the last update's results and never wait for a fit; a view inserted during a fit
+// waits only for the surface extraction. reset() cancels a running fit, whose results are then
+// never stored: nothing fitted before a reset shows after it.
+#include <fruit_shape_completion/fruit_input_stage.h>
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/host/shape_estimator.h>
+#include <fruit_shape_completion/tsdf_integrator.h>
+#include <fruit_shape_completion/tsdf_surface.h>
+
+#include <atomic>
+#include <mutex>
+
+namespace fruit_shape_completion {
+namespace host {
+
+struct SuperellipsoidEstimatorParams {
+  FruitInputParams input;
+  TsdfMapParams map;
+  TsdfIntegratorParams integrator;
+  SurfaceExtractionParams surface;
+  PipelineParams pipeline;
+  bool publish_targets = true;  // hand the predicted surface to the planner as extra targets
+};
+
+// What the estimator has dropped since it started (or was reset), and its map's memory: the
+// counters behind its warnings, for logs and diagnostics.
+struct EstimatorStatus {
+  std::size_t views = 0, views_refused = 0;
+  std::size_t points_skipped = 0;    // NaN/Inf, or outside the range limits
+  std::size_t rays_outside = 0;      // partly outside the crop box or the map's range
+  std::size_t rays_over_budget = 0;  // partly dropped at the memory budget
+  std::size_t blocks = 0, max_blocks = 0;
+  double memory_mb = 0.0;
+  std::size_t fruits = 0;  // accepted at the last update
+  // The fruit input stage's totals: views by source, and the points each step dropped.
+  std::size_t camera_frames = 0, roi_views = 0, fruit_clouds = 0;
+  std::size_t masked_points = 0, depth_edge_points = 0, veil_points = 0, outlier_points = 0;
+};
+
+class SuperellipsoidEstimator : public ShapeEstimator {
+ public:
+  explicit SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params = {});
+  std::string name() const override { return "superellipsoid"; }
+  void insertView(const ViewData& view) override;
+  void update() override;
+  std::vector<FruitEstimate> fruits() const override;
+  PointList extraTargets() const override;
+  void reset() override;
+  void cancelUpdate() override;  // for good: the estimator is going away
+
+  // The fruit map as a file (TsdfMap::save/load); a failed load leaves the map unchanged. The
+  // map is copied under the lock and written outside it, atomically (a temporary file renamed
+  // over the target): views do not wait for the disk, and a failed save keeps the old file.
+  bool saveMap(const std::string& path, std::string* error) const;
+  bool loadMap(const std::string& path, std::string* error);
+
+  // Snapshots for display and tests.
+  std::vector<FruitEstimate> estimates() const;
+  PointList surface() const;
+  IntegrationReport lastIntegration() const;
+  // The input stage's report of the last view (its points not kept).
+  FruitInput lastInput() const;
+  PipelineStats lastPipelineStats() const;
+  EstimatorStatus status() const;
+  double lastSurfaceSeconds() const;  // surface extraction of the last update
+
+ private:
+  SuperellipsoidEstimatorParams params_;
+  FruitInputStage input_stage_;  // const after construction: runs outside the locks
+  // Lock order: fit_mutex_, then map_mutex_, then results_mutex_.
+  std::mutex fit_mutex_;  // one update at a time; guards pipeline_
+  std::atomic<bool> cancel_{false};  // a running update returns early and stores nothing
+  std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
+  std::atomic<int> resets_waiting_{0};  // resets that set cancel_ and wait for the fit
+  FruitShapePipeline pipeline_;
+  mutable std::mutex map_mutex_;  // guards the members below up to results_mutex_
+  TsdfMap map_;
+  TsdfIntegrator integrator_;
+  IntegrationReport last_;
+  FruitInput last_input_;
+  EstimatorStatus totals_;
+  bool dirty_ = false;
+  mutable std::mutex results_mutex_;  // guards the last update's results below
+  std::vector<FruitEstimate> estimates_;
+  PointList surface_, targets_;
+  PipelineStats stats_;
+  double surface_seconds_ = 0.0;
+};
+
+}  // namespace host
+}  // namespace fruit_shape_completion

@@ -1,0 +1,144 @@
+#pragma once
+// A next-best-view loop over a simulated scene, standing in for the upstream ROI viewpoint
+// planner: render a view, insert it into the ROI octree, hand it to the shape estimators,
+// collect targets (ROI contours + the estimators' predicted surface), sample views around
+// them and take the best by utility (unknown cells near targets seen along the camera rays,
+// minus travel). Each view costs simulated time: a fixed `view_cost` for planning and capture
+// plus the travel, either the camera flying at `speed` or (params.arm) the scene's UR5e moving
+// in joint space, only to views it can reach; the episode ends when `duration` is spent.
+#include <fruit_shape_completion/instrument/planner/evaluation.h>
+#include <fruit_shape_completion/instrument/planner/roi_octree.h>
+#include <fruit_shape_completion/host/shape_estimator.h>
+#include <fruit_shape_completion/instrument/sim/fruit_truth.h>
+#include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
+#include <fruit_shape_completion/instrument/sim/robot_arm.h>
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace fruit_shape_completion {
+namespace planner {
+
+// The product's estimator host, as the stand-in planner loop uses it.
+using host::ShapeEstimatorHost;
+using host::ViewData;
+using host::ViewSource;
+
+struct PlannerParams {
+  double duration = 180.0;   // [s] simulated
+  double view_cost = 2.0;    // [s] planning + capture per view
+  double speed = 0.3;        // [m/s] camera travel (arm-like)
+  double min_view_distance = 0.3, max_view_distance = 0.5;  // [m] from a target
+  int candidates = 24;       // views sampled per step
+  int utility_rays_x = 24, utility_rays_y = 18;
+  double utility_range = 1.0;  // [m]
+  double travel_weight = 0.2;  // utility = gain / best gain - travel_weight * distance [m]
+  bool shape_targets = true;   // use the estimators' extra targets
+  double octree_resolution = 0.01;  // [m] the ROI octree's cells
+  int octree_pixel_step = 3;   // every n-th pixel (both ways) goes into the 1 cm octree
+  double octree_max_range = 1.5;
+  double clearance = 0.05;     // [m] free space around the camera
+  unsigned seed = 1;
+  int render_threads = 1;
+  bool depth_noise = true;
+  // What the estimators get, as a robot's stack hands it to the plugin:
+  //  kCamera: the organized camera frame (depth_image_proc) with its pose; the product's whole
+  //    fruit input stage runs on it (red test, depth edges, outliers);
+  //  kRoi: pointcloud_roi's PointcloudWithRoi (1 cm voxel means, red indices): what the patched
+  //    upstream planner hands over when nothing else is configured;
+  //  kFruitCloud: a simple_roi_detector-like node's full-resolution red points, without depth
+  //    edges removed (the plugin's fruit_cloud_topic).
+  enum class Input { kCamera, kRoi, kFruitCloud };
+  Input input = Input::kCamera;
+  double roi_leaf = 0.01;  // [m] pointcloud_roi's voxel grid
+  // The paper-like profile's parts (paperProfile()); the defaults are the ideal simulation.
+  bool paper_depth_noise = false;   // the paper's structured noise and blur (sim::DepthNoise::kPaper)
+  bool upstream_red_test = false;   // pointcloud_roi's HSI red test (sim::RedThreshold::kUpstream)
+  bool textures = false;  // for whoever builds the renderer: sim::Shading::textures (Gazebo's look)
+  bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
+  double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
+  // The planner's wall time (with the estimators' insertView) adds to the clock, and a fit's
+  // results reach the planner only its measured duration after it started.
+  bool charge_compute_time = false;
+  // The scene's arm carries the camera: only views with an inverse kinematics solution free of
+  // what the map has seen occupied are sampled (as MoveIt plans in its octomap), travel takes
+  // the joint-space motion time, and a move whose goal collides with the plants fails.
+  bool arm = false;
+  sim::ArmMotion arm_motion;
+  double arm_collision_resolution = 0.01;  // [m] cells of the plants' distance field (the world)
+  double arm_map_resolution = 0.02;        // [m] cells of the map's distance field (the planner's)
+  // Empty if usable, else what is wrong (runEpisode refuses to start with it).
+  std::string problem() const;
+};
+
+// The paper's set-up: its depth noise, an estimator refreshed every 3 s, compute time on the
+// episode clock, no ground truth in planning, the UR5e on its mount with a per-plan overhead.
+PlannerParams paperProfile(PlannerParams base = PlannerParams());
+
+struct ViewRecord {
+  int view = 0;
+  double time = 0.0;  // [s] simulated, after this view's capture
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Evaluation old_true, se_true;  // against the enclosed volume
+  Evaluation old_se, se_se;      // against the ground-truth superellipsoid volume
+  Evaluation old_box;            // Old against the voxel-centre box (SceneTruth::box)
+  int contour_targets = 0, shape_targets = 0;
+  bool exploration = false;
+  double gain = 0.0;  // the best candidate's gain (unknown cells its rays see) when this view was planned
+  double wall_ms = 0.0;
+  double compute_ms = 0.0;  // what the planner blocked on: wall_ms without rendering and the fit
+  double fit_ms = 0.0;      // a fit started after this view (0: none); runs beside the planner
+};
+
+struct EpisodeResult {
+  std::vector<ViewRecord> views;
+  std::string message;  // why it ended early or ran empty; empty if it ran normally
+  int truth_fruits = 0;
+  // The fruit mask against the renderer's labels, over all pixels with a surface: red-fruit
+  // pixels it missed, and other pixels it took for fruit.
+  std::uint64_t mask_positives = 0, mask_false_negatives = 0;
+  std::uint64_t mask_negatives = 0, mask_false_positives = 0;
+  // With the arm: candidate views sampled and those it could reach; why the others failed.
+  int sampled_views = 0, reachable_views = 0, unreachable_ik = 0, unreachable_limits = 0, unreachable_collision = 0;
+  int failed_moves = 0;  // planned moves whose goal hit plants the map had not seen
+  std::vector<FruitEstimate> final_fruits;  // the estimator's scored fruits after the last view
+  int dropped_views = 0;       // views that threw and were skipped
+  std::string dropped_reason;  // the first one's exception
+};
+
+struct SceneTruth {
+  std::vector<TruthFruit> enclosed;  // volume = enclosed volume
+  std::vector<TruthFruit> se;        // volume = superellipsoid volume
+  // The upstream planner evaluator's ground truth for the Old boxes: the box of the centres of
+  // the fruit's voxels at the octree resolution (its midpoint as the centre). Box against box:
+  // a fully seen fruit's Old box scores ~1 here, ~0.1 against the enclosed volume.
+  std::vector<TruthFruit> box;
+  double box_resolution = 0.0;  // [m] the cells `box` was made for (runEpisode checks it)
+  // Centres of the fruits the paper does not score (not red): estimates nearer one of them
+  // than any scored fruit are left out of the evaluation, neither matches nor false matches.
+  std::vector<Eigen::Vector3d> not_scored;
+  std::vector<FruitEstimate> scoredEstimates(std::vector<FruitEstimate> estimates) const;
+};
+// All three from the scene's red ground-truth fruits; `resolution` is the ROI octree's.
+SceneTruth makeSceneTruth(const std::vector<sim::FruitTruth>& fruits, double resolution);
+
+// Called after every view (e.g. to publish it) with the rendered frame and what the estimators
+// were given; return false to stop the episode.
+using ViewCallback = std::function<bool(const ViewRecord&, const RoiOcTree&, const sim::RgbdFrame&, const ViewData&)>;
+
+// Scores the estimators' fruits and the ROI octree's Old boxes against the truth into *rec
+// (as the paper does); returns the estimators' scored fruits.
+std::vector<FruitEstimate> scoreView(const RoiOcTree& tree, const SceneTruth& truth,
+                                     const std::vector<FruitEstimate>& estimates, ViewRecord* rec);
+
+const char* toString(PlannerParams::Input input);
+bool parseInput(const std::string& name, PlannerParams::Input* input);  // camera, roi, fruit-cloud
+
+EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
+                         const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& params,
+                         const ViewCallback& on_view = nullptr);
+
+}  // namespace planner
+}  // namespace fruit_shape_completion

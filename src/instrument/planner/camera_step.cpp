@@ -1,0 +1,82 @@
+#include "camera_step.h"
+
+#include <fruit_shape_completion/instrument/planner/pointcloud_roi.h>
+
+#include <cmath>
+
+namespace fruit_shape_completion {
+namespace planner {
+
+CameraView captureView(const sim::RgbdRenderer& renderer, const PinholeCamera& camera, const PlannerParams& p,
+                       const sim::RedThreshold& red_test, int view) {
+  CameraView v;
+  v.camera = camera;
+  sim::DepthNoise noise;
+  noise.enabled = p.depth_noise;
+  if (p.paper_depth_noise) noise.model = sim::DepthNoise::Model::kPaper;
+  noise.seed = p.seed * 100003u + static_cast<unsigned>(view);
+  v.frame = renderer.render(camera, noise, p.render_threads);
+  v.mask = sim::redMask(v.frame.rgb, v.frame.width, v.frame.height, red_test);
+  v.pose = sim::cameraPose(camera);
+  // The ideal profile's HSV test stands in for an external detector's mask (viewData's caller
+  // passes it); the paper profile leaves the red test to the product's input stage.
+  switch (p.input) {
+    case PlannerParams::Input::kCamera:
+      v.organized = sim::organizedFrame(v.frame);
+      v.source = ViewSource::kCameraFrame;
+      break;
+    case PlannerParams::Input::kRoi: {
+      RoiCloud roi = pointcloudRoi(v.frame, p.roi_leaf, red_test);
+      for (const auto i : roi.roi_indices) v.fruit_points.push_back(roi.points[static_cast<std::size_t>(i)]);
+      v.all_points = std::move(roi.points);
+      v.source = ViewSource::kRoiCloud;
+      break;
+    }
+    case PlannerParams::Input::kFruitCloud:
+      v.fruit_points = sim::cloudsFromFrame(v.frame, v.mask).fruit;
+      v.source = ViewSource::kFruitCloud;
+      break;
+  }
+  return v;
+}
+
+ViewData CameraView::viewData(double time) const {
+  ViewData given{fruit_points, all_points, pose, time, source};
+  if (source == ViewSource::kCameraFrame) given.camera_frame = &organized;
+  return given;
+}
+
+void countMask(const CameraView& v, const std::vector<char>& red_fruit_material, EpisodeResult* result) {
+  for (std::size_t px = 0; px < v.mask.size(); ++px) {
+    const int m = v.frame.material[px];
+    if (m < 0) continue;
+    if (red_fruit_material[static_cast<std::size_t>(m)]) {
+      ++result->mask_positives;
+      result->mask_false_negatives += !v.mask[px];
+    } else {
+      ++result->mask_negatives;
+      result->mask_false_positives += v.mask[px];
+    }
+  }
+}
+
+void insertIntoOctree(RoiOcTree* tree, const CameraView& v, const PlannerParams& p) {
+  const PinholeCamera& cam = v.camera;
+  const sim::RgbdFrame& frame = v.frame;
+  PointList octree_points;
+  std::vector<char> octree_fruit;
+  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  for (int row = 0; row < frame.height; row += p.octree_pixel_step)
+    for (int u = 0; u < frame.width; u += p.octree_pixel_step) {
+      const std::size_t px = static_cast<std::size_t>(row) * frame.width + u;
+      const double z = frame.depth[px];
+      if (!std::isfinite(z)) continue;
+      octree_points.push_back(cam.position + cam.rotation * Eigen::Vector3d((u + 0.5 - 0.5 * cam.width) / f * z,
+                                                                            (row + 0.5 - 0.5 * cam.height) / f * z, z));
+      octree_fruit.push_back(v.mask[px] ? 1 : 0);
+    }
+  tree->insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);
+}
+
+}  // namespace planner
+}  // namespace fruit_shape_completion

@@ -1,0 +1,82 @@
+// fit_cloud: fits one superellipsoid per fruit to a fruit surface cloud file.
+//   fit_cloud --input FILE [--json] [--surface-out FILE.ply]
+#include <fruit_shape_completion/instrument/cloud_io.h>
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+
+#include "command_line.h"
+
+#include <chrono>
+#include <iostream>
+
+#include "fruit_report.h"
+
+using namespace fruit_shape_completion;
+
+int main(int argc, char** argv) {
+  std::string input, surface_out;
+  bool json = false;
+  CLI::App app("Fits one superellipsoid per fruit to a fruit surface cloud file.", "fit_cloud");
+  app.add_option("--input", input, "FILE: .pcd, .ply, or text with 'x y z' per line (metres, one frame)")
+      ->required();
+  app.add_flag("--json", json, "one JSON object on stdout (logs on stderr)");
+  app.add_option("--surface-out", surface_out,
+                 "PLY of the fitted surfaces: observed part green, predicted unseen part red (accepted fruits only)");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
+
+  const auto start = std::chrono::steady_clock::now();
+  const CloudFile cloud = readPointCloud(input);
+  if (!cloud.ok()) {
+    std::cerr << "fit_cloud: " << cloud.error << "\n";
+    return 1;
+  }
+  FruitShapePipeline pipeline;
+  const auto& fruits = pipeline.update(cloud.points);
+  const auto& st = pipeline.lastStats();
+  const double total_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+
+  std::cerr << "fit_cloud: " << st.input_points << " points";
+  if (st.non_finite_points > 0) std::cerr << " (" << st.non_finite_points << " NaN/Inf skipped)";
+  std::cerr << ", " << st.clusters << " clusters, " << st.accepted << " accepted fits\n";
+  if (st.input_points - st.non_finite_points == 0)
+    std::cerr << "fit_cloud: warning: the cloud has no finite points, nothing to fit\n";
+  else if (st.clusters == 0)
+    std::cerr << "fit_cloud: warning: no cluster of " << pipeline.params().clustering.min_size
+              << ".." << pipeline.params().clustering.max_size << " points within "
+              << pipeline.params().clustering.tolerance << " m; nothing to fit\n";
+  for (const auto& f : fruits)
+    if (!f.accepted) std::cerr << "fit_cloud: fruit " << f.id << " rejected: " << f.reason << "\n";
+
+  if (!surface_out.empty()) {
+    PointList pts;
+    std::vector<std::array<std::uint8_t, 3>> colors;
+    const int samples = pipeline.params().missing.samples;
+    for (const auto& f : fruits) {
+      if (!f.accepted) continue;
+      // Same sampling as the missing-surface prediction, so red points are exactly those targets.
+      for (const auto& p : f.shape.sampleSurface(samples)) {
+        bool missing = false;
+        for (const auto& m : f.missing_surface) missing = missing || (m - p).squaredNorm() < 1e-16;
+        pts.push_back(p);
+        colors.push_back(missing ? std::array<std::uint8_t, 3>{230, 30, 30}
+                                 : std::array<std::uint8_t, 3>{40, 200, 60});
+      }
+    }
+    std::string err;
+    if (!writePly(surface_out, pts, colors, &err)) {
+      std::cerr << "fit_cloud: " << err << "\n";
+      return 1;
+    }
+  }
+
+  if (json) {
+    nlohmann::json out = {{"fruits", nlohmann::json::array()}, {"non_finite_points", st.non_finite_points},
+                          {"total_ms", total_ms}};
+    for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
+    std::cout << out.dump() << "\n";
+  } else {
+    printFruitTable(std::cout, fruits);
+    std::cout << "total " << total_ms << " ms\n";
+  }
+  return 0;
+}

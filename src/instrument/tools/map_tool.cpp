@@ -1,0 +1,60 @@
+// map_tool: inspects a saved TSDF fruit map: its size, its surface (PLY points or mesh) and the
+// superellipsoids fitted to it.
+//   map_tool --map FILE.tsdf [--surface-out F.ply] [--mesh-out F.ply] [--fit] [--json]
+#include <fruit_shape_completion/instrument/cloud_io.h>
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/tsdf_surface.h>
+
+#include "command_line.h"
+
+#include <iostream>
+
+#include "fruit_report.h"
+
+using namespace fruit_shape_completion;
+
+int main(int argc, char** argv) {
+  std::string map_file, surface_out, mesh_out;
+  bool fit = false, json = false;
+  CLI::App app("Inspects a saved TSDF fruit map: its size, its surface and the superellipsoids fitted to it.",
+               "map_tool");
+  app.add_option("--map", map_file, "FILE.tsdf (save_map, demo_mapping --save-map)")->required();
+  app.add_option("--surface-out", surface_out, "PLY of the surface points");
+  app.add_option("--mesh-out", mesh_out, "PLY mesh of the surface (marching cubes)");
+  app.add_flag("--fit", fit, "fit the fruits and list them");
+  app.add_flag("--json", json, "one JSON object on stdout");
+  if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
+  TsdfMap map;
+  std::string err;
+  if (!map.load(map_file, &err)) {
+    std::cerr << "map_tool: " << err << "\n";
+    return 1;
+  }
+  const PointList surface = extractSurfacePoints(map);
+  std::cerr << "map_tool: " << map.blockCount() << " blocks, " << map.observedVoxelCount()
+            << " observed voxels, " << surface.size() << " surface points, voxel "
+            << map.voxelSize() << " m\n";
+  if (!surface_out.empty() && !writePly(surface_out, surface, {}, &err)) {
+    std::cerr << "map_tool: " << err << "\n";
+    return 1;
+  }
+  if (!mesh_out.empty() && !extractSurfaceMesh(map).writePly(mesh_out, &err)) {
+    std::cerr << "map_tool: " << err << "\n";
+    return 1;
+  }
+  std::vector<FruitEstimate> fruits;
+  if (fit) {
+    FruitShapePipeline pipeline;
+    fruits = pipeline.update(surface);
+  }
+  if (json) {
+    nlohmann::json out = {{"blocks", map.blockCount()},        {"observed_voxels", map.observedVoxelCount()},
+                          {"surface_points", surface.size()},   {"memory_bytes", map.memoryBytes()},
+                          {"fruits", nlohmann::json::array()}};
+    for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
+    std::cout << out.dump() << "\n";
+  } else if (fit) {
+    printFruitTable(std::cout, fruits);
+  }
+  return 0;
+}

@@ -1,0 +1,205 @@
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
+
+#include <fruit_shape_completion/atomic_file.h>
+
+#include <chrono>
+
+namespace fruit_shape_completion {
+namespace host {
+
+SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)
+    : params_(params), input_stage_(params.input), pipeline_(params.pipeline), map_(params.map),
+      integrator_(params.integrator) {}
+
+namespace {
+
+FruitInput runInputStage(const FruitInputStage& stage, const ViewData& view) {
+  switch (view.source) {
+    case ViewSource::kCameraFrame:
+      if (!view.camera_frame) {
+        FruitInput refused;
+        refused.error = "a camera-frame view without a frame";
+        return refused;
+      }
+      return stage.processFrame(*view.camera_frame, view.sensor_pose, view.fruit_mask);
+    case ViewSource::kRoiCloud:
+      return stage.processRoiCloud(view.full_cloud, view.fruit_cloud, view.sensor_pose.translation());
+    case ViewSource::kFruitCloud:
+      return stage.processFruitCloud(view.fruit_cloud);
+    case ViewSource::kFruitPoints:
+      break;
+  }
+  FruitInput as_is;
+  as_is.fruit = view.fruit_cloud;
+  as_is.points = view.fruit_cloud.size();
+  return as_is;
+}
+
+}  // namespace
+
+void SuperellipsoidEstimator::insertView(const ViewData& view) {
+  // The stage reads only the view and its own constant parameters: no lock while it runs.
+  FruitInput input = runInputStage(input_stage_, view);
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  if (input.ok()) {
+    last_ = integrator_.integrate(map_, input.fruit, view.sensor_pose);
+  } else {
+    last_ = IntegrationReport();
+    last_.error = input.error;
+  }
+  input.fruit.clear();
+  input.full.clear();
+  input.mask.clear();
+  totals_.camera_frames += view.source == ViewSource::kCameraFrame ? 1 : 0;
+  totals_.roi_views += view.source == ViewSource::kRoiCloud ? 1 : 0;
+  totals_.fruit_clouds += view.source == ViewSource::kFruitCloud ? 1 : 0;
+  totals_.masked_points += input.masked;
+  totals_.depth_edge_points += input.depth_edges;
+  totals_.veil_points += input.veil;
+  totals_.outlier_points += input.outliers;
+  totals_.points_skipped += input.non_finite;
+  last_input_ = std::move(input);
+  dirty_ = dirty_ || last_.rays > 0;
+  ++totals_.views;
+  totals_.views_refused += last_.ok() ? 0 : 1;
+  totals_.points_skipped += last_.non_finite + last_.out_of_range;
+  totals_.rays_outside += last_.outside_map;
+  totals_.rays_over_budget += last_.over_budget;
+}
+
+EstimatorStatus SuperellipsoidEstimator::status() const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  EstimatorStatus s = totals_;
+  s.blocks = map_.blockCount();
+  s.max_blocks = map_.params().maxBlocks();
+  s.memory_mb = static_cast<double>(map_.memoryBytes()) / 1048576.0;
+  std::lock_guard<std::mutex> results_lock(results_mutex_);
+  for (const auto& f : estimates_) s.fruits += f.accepted ? 1 : 0;
+  return s;
+}
+
+void SuperellipsoidEstimator::update() {
+  std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  PointList surface;
+  double surface_seconds = 0.0;
+  {
+    std::lock_guard<std::mutex> lock(map_mutex_);
+    if (!dirty_) return;
+    const auto start = std::chrono::steady_clock::now();
+    surface = extractSurfacePoints(map_, params_.surface);
+    surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    dirty_ = false;
+  }
+  // The fit runs on the surface copy, with the map free for new views and the last results
+  // free for queries.
+  if (cancel_) return;
+  pipeline_.update(surface, &cancel_);
+  if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
+  std::vector<FruitEstimate> estimates = pipeline_.fruits();
+  PointList targets;
+  if (params_.publish_targets)
+    for (const auto& f : estimates)
+      if (f.accepted) targets.insert(targets.end(), f.missing_surface.begin(), f.missing_surface.end());
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  estimates_ = std::move(estimates);
+  surface_ = std::move(surface);
+  targets_ = std::move(targets);
+  stats_ = pipeline_.lastStats();
+  surface_seconds_ = surface_seconds;
+}
+
+std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  std::vector<FruitEstimate> out;
+  for (const auto& f : estimates_)
+    if (f.accepted) out.push_back(f);
+  return out;
+}
+
+PointList SuperellipsoidEstimator::extraTargets() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return targets_;
+}
+
+void SuperellipsoidEstimator::reset() {
+  // A running fit returns at its next cluster instead of finishing; unless the estimator is
+  // being destroyed (cancelUpdate), fits resume after the reset.
+  ++resets_waiting_;
+  cancel_ = true;
+  std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  if (--resets_waiting_ == 0 && !stopping_) cancel_ = false;
+  std::lock_guard<std::mutex> map_lock(map_mutex_);
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  map_.clear();
+  pipeline_.reset();
+  totals_ = EstimatorStatus();
+  last_ = IntegrationReport();
+  last_input_ = FruitInput();
+  dirty_ = false;
+  estimates_.clear();
+  surface_.clear();
+  targets_.clear();
+  stats_ = PipelineStats();
+}
+
+void SuperellipsoidEstimator::cancelUpdate() {
+  stopping_ = true;
+  cancel_ = true;
+}
+
+bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error) const {
+  std::string bytes;
+  {
+    std::lock_guard<std::mutex> lock(map_mutex_);
+    map_.serialize(&bytes);
+  }
+  return writeFileAtomically(path, bytes, error);
+}
+
+bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* error) {
+  TsdfMap loaded(params_.map);  // read outside the lock: the map keeps taking views meanwhile
+  if (!loaded.load(path, error)) return false;
+  if (loaded.params().voxel_size != params_.map.voxel_size) {
+    if (error)
+      *error = path + ": voxel size " + std::to_string(loaded.params().voxel_size) + " m differs from the map's " +
+               std::to_string(params_.map.voxel_size) + " m";
+    return false;
+  }
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  map_ = std::move(loaded);
+  dirty_ = true;  // the next update() fits the loaded map
+  return true;
+}
+
+std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return estimates_;
+}
+
+PointList SuperellipsoidEstimator::surface() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return surface_;
+}
+
+FruitInput SuperellipsoidEstimator::lastInput() const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  return last_input_;
+}
+
+IntegrationReport SuperellipsoidEstimator::lastIntegration() const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  return last_;
+}
+
+PipelineStats SuperellipsoidEstimator::lastPipelineStats() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return stats_;
+}
+
+double SuperellipsoidEstimator::lastSurfaceSeconds() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return surface_seconds_;
+}
+
+}  // namespace host
+}  // namespace fruit_shape_completion

@@ -1,0 +1,76 @@
+#include <fruit_shape_completion/ros/fruit_publisher.h>
+#include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
+
+#include <ros/console.h>
+#include <tf2_eigen/tf2_eigen.h>
+
+namespace fruit_shape_completion {
+namespace ros_io {
+
+RoiPlannerShapeEstimators::RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh, const std::string& map_frame)
+    : map_frame_(map_frame) {
+  loader_.load(planner_nh, map_frame);
+}
+
+bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
+               const geometry_msgs::Transform& transform, const std::string& map_frame, RoiView* view,
+               std::string* error) {
+  if (!fromRoiCloud(cloud, roi_indices, &view->all, &view->fruit, &view->bad_indices, error)) return false;
+  view->sensor_pose = tf2::transformToEigen(transform);
+  if (!view->sensor_pose.matrix().allFinite()) {
+    *error = "non-finite transform";
+    return false;
+  }
+  if (cloud.header.frame_id != map_frame) {
+    for (auto& p : view->all) p = view->sensor_pose * p;
+    for (auto& p : view->fruit) p = view->sensor_pose * p;
+  }
+  return true;
+}
+
+void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud,
+                                           const std::vector<std::int32_t>& roi_indices,
+                                           const geometry_msgs::Transform& transform, double time) {
+  if (empty()) return;
+  try {
+    RoiView view;
+    std::string error;
+    if (!toRoiView(cloud, roi_indices, transform, map_frame_, &view, &error)) {
+      ++views_skipped_;
+      ROS_WARN("shape estimators: view skipped (%zu so far): %s", std::size_t(views_skipped_), error.c_str());
+      return;
+    }
+    if (view.bad_indices > 0) {
+      indices_skipped_ += view.bad_indices;
+      ROS_WARN_THROTTLE(10.0, "shape estimators: %zu ROI indices out of range or on NaN points skipped (%zu so far)",
+                        view.bad_indices, std::size_t(indices_skipped_));
+    }
+    loader_.host().onView({view.fruit, view.all, view.sensor_pose, time, host::ViewSource::kRoiCloud});
+  } catch (const std::exception& e) {  // std::bad_alloc among them: drop this view, keep the planner running
+    ++views_skipped_;
+    ROS_ERROR("shape estimators: view dropped (%zu so far): %s", std::size_t(views_skipped_), e.what());
+  }
+}
+
+std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets() const {
+  std::vector<octomap::point3d> out;
+  try {
+    const PointList targets = loader_.host().extraTargets();
+    out.reserve(targets.size());
+    for (const auto& p : targets)
+      out.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+  } catch (const std::exception& e) {
+    ROS_ERROR("shape estimators: no extra targets this time: %s", e.what());
+    out.clear();
+  }
+  return out;
+}
+
+void RoiPlannerShapeEstimators::reset() {
+  loader_.host().reset();
+  views_skipped_ = 0;
+  indices_skipped_ = 0;
+}
+
+}  // namespace ros_io
+}  // namespace fruit_shape_completion

@@ -1,0 +1,80 @@
+#include <fruit_shape_completion/ros/shape_estimator_loader.h>
+
+#include <ros/ros.h>
+#include <xmlrpcpp/XmlRpcValue.h>
+
+#include <stdexcept>
+
+namespace fruit_shape_completion {
+namespace ros_io {
+
+ShapeEstimatorLoader::ShapeEstimatorLoader()
+    : loader_("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin"),
+      host_([](const std::string& msg) { ROS_ERROR("%s", msg.c_str()); },
+            host::ShapeEstimatorHost::Updates::kBackground) {}
+
+void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame) {
+  XmlRpc::XmlRpcValue list;
+  if (!nh.getParam("shape_estimators", list)) {
+    ROS_INFO("no 'shape_estimators' parameter in %s: running without shape estimators", nh.getNamespace().c_str());
+    return;
+  }
+  if (list.getType() != XmlRpc::XmlRpcValue::TypeArray)
+    throw std::runtime_error(nh.resolveName("shape_estimators") + " must be a list of {name, type}");
+  for (int i = 0; i < list.size(); ++i) {
+    XmlRpc::XmlRpcValue& e = list[i];
+    if (e.getType() != XmlRpc::XmlRpcValue::TypeStruct || !e.hasMember("name") || !e.hasMember("type") ||
+        e["name"].getType() != XmlRpc::XmlRpcValue::TypeString || e["type"].getType() != XmlRpc::XmlRpcValue::TypeString)
+      throw std::runtime_error(nh.resolveName("shape_estimators") + "[" + std::to_string(i) +
+                               "] must be {name: NAME, type: PACKAGE/CLASS}");
+    const std::string name = e["name"], type = e["type"];
+    std::unique_ptr<ShapeEstimatorPlugin> plugin;
+    try {
+      plugin.reset(loader_.createUnmanagedInstance(type));
+    } catch (const pluginlib::PluginlibException& ex) {
+      std::string known;
+      for (const auto& c : loader_.getDeclaredClasses()) known += " " + c;
+      throw std::runtime_error("cannot load shape estimator '" + name + "' of type '" + type + "': " + ex.what() +
+                               " (known types:" + known + ")");
+    }
+    ros::NodeHandle plugin_nh(nh, name);
+    plugin->initialize(name, plugin_nh, map_frame);
+    plugins_.push_back(plugin.get());
+    host_.add(std::move(plugin));
+  }
+  if (plugins_.empty()) return;
+  diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, nh);
+  diagnostics_->setHardwareID("shape_estimators");
+  for (std::size_t i = 0; i < plugins_.size(); ++i)
+    diagnostics_->add("shape estimator " + plugins_[i]->name(),
+                      [this, i](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(i, s); });
+  diagnostics_timer_ = nh.createTimer(ros::Duration(1.0), [this](const ros::TimerEvent&) { diagnostics_->update(); });
+}
+
+void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status) const {
+  if (!host_.enabled(i)) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "disabled: " + host_.lastError(i));
+    return;
+  }
+  try {
+    for (const auto& kv : plugins_[i]->diagnostics()) status.add(kv.first, kv.second);
+    const std::size_t oom = host_.outOfMemoryDrops(i);
+    status.add("views dropped out of memory", oom);
+    const host::ShapeEstimatorHost::UpdateStatus fit = host_.updateStatus(i);
+    status.add("fits run beside the planner", fit.runs);
+    status.add("view updates coalesced into a later fit", fit.coalesced);
+    status.add("last fit duration [ms]", 1e3 * fit.last_seconds);
+    status.add("seconds since the last fit finished", fit.age_seconds < 0 ? std::string("never") : std::to_string(fit.age_seconds));
+    status.add("fit running", fit.running ? "yes" : "no");
+    status.add("insertView latency, last 256 views: median [ms]", host_.insertLatencyMs(0.5));
+    status.add("insertView latency, last 256 views: p95 [ms]", host_.insertLatencyMs(0.95));
+    status.add("insertView latency, last 256 views: max [ms]", host_.insertLatencyMs(1.0));
+    if (oom > 0) status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; " + host_.lastError(i));
+    else status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
+  } catch (const std::exception& e) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, std::string("no diagnostics: ") + e.what());
+  }
+}
+
+}  // namespace ros_io
+}  // namespace fruit_shape_completion

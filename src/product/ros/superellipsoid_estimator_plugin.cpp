@@ -1,0 +1,352 @@
+// fruit_shape_completion/SuperellipsoidEstimator: the superellipsoid shape estimator as a
+// pluginlib plugin; publishes its state under its namespace after every update and offers
+// clear_map, save_map and load_map there. With camera_cloud_topic it keeps the camera's last
+// organized clouds and feeds the fruit map from the frame each planner view was made from
+// (full resolution, the whole fruit input stage) instead of the view's 1 cm cloud.
+#include <fruit_shape_completion/FilePath.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
+#include <fruit_shape_completion/host/update_worker.h>
+#include <fruit_shape_completion/ros/camera_frames.h>
+#include <fruit_shape_completion/ros/estimator_params.h>
+#include <fruit_shape_completion/ros/fruit_publisher.h>
+#include <fruit_shape_completion/ros/upstream_messages.h>
+#include <fruit_shape_completion/shape_estimator_plugin.h>
+
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <std_srvs/Empty.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <atomic>
+#include <cstdio>
+#include <memory>
+#include <mutex>
+
+namespace fruit_shape_completion {
+
+class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
+ public:
+  ~SuperellipsoidEstimatorPlugin() override {
+    // No callback may start a view or a fit once the estimator is on its way out.
+    camera_.shutdown();
+    fruit_cloud_.shutdown();
+    clear_.shutdown();
+    save_.shutdown();
+    load_.shutdown();
+    if (estimator_) estimator_->cancelUpdate();
+    own_updates_.reset();
+  }
+  void initialize(const std::string& name, ros::NodeHandle& nh, const std::string& map_frame) override {
+    name_ = name;
+    map_frame_ = map_frame;
+    estimator_ = std::make_unique<host::SuperellipsoidEstimator>(ros_io::readEstimatorParams(nh, ros_io::pluginInputKeys()));
+    std::string superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic, fruit_cloud_topic;
+    std::string camera_topic = "/camera/depth/points";
+    int buffer_frames = 16, buffer_mb = 160;
+    ros_io::readStringParam(nh, "superellipsoids_topic", &superellipsoids_topic);
+    ros_io::readStringParam(nh, "fruit_cloud_topic", &fruit_cloud_topic);
+    ros_io::readStringParam(nh, "camera_cloud_topic", &camera_topic);
+    ros_io::readNumberParam(nh, "camera_pair_tolerance", &pair_tolerance_);
+    ros_io::readIntParam(nh, "camera_buffer_frames", &buffer_frames);
+    ros_io::readIntParam(nh, "camera_buffer_mb", &buffer_mb);
+    if (!(pair_tolerance_ >= 0.0 && pair_tolerance_ <= 10.0))
+      throw std::runtime_error("parameter '" + nh.resolveName("camera_pair_tolerance") + "' must be in [0, 10] s");
+    if (buffer_frames < 1 || buffer_frames > 1000)
+      throw std::runtime_error("parameter '" + nh.resolveName("camera_buffer_frames") + "' must be in [1, 1000]");
+    if (buffer_mb < 1 || buffer_mb > 65536)
+      throw std::runtime_error("parameter '" + nh.resolveName("camera_buffer_mb") + "' must be in [1, 65536] MiB");
+    publisher_ = std::make_unique<ros_io::FruitPublisher>(nh, map_frame, superellipsoids_topic);
+    // Fits the plugin starts itself (fruit clouds, a camera at rest, a loaded map) run here,
+    // never in a subscriber's or a service's callback.
+    own_updates_ = std::make_unique<host::UpdateWorker>([this] {
+      try {
+        update();
+      } catch (const std::exception& e) {  // std::bad_alloc among them: keep the last results
+        ROS_ERROR_THROTTLE(10.0, "%s: update failed, the last results kept: %s", name_.c_str(), e.what());
+      }
+    });
+    clear_ = nh.advertiseService("clear_map", &SuperellipsoidEstimatorPlugin::clearMap, this);
+    save_ = nh.advertiseService("save_map", &SuperellipsoidEstimatorPlugin::saveMap, this);
+    load_ = nh.advertiseService("load_map", &SuperellipsoidEstimatorPlugin::loadMap, this);
+    if (!fruit_cloud_topic.empty() || !camera_topic.empty()) {
+      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
+    }
+    std::string fed_by = "the planner's views";
+    if (!fruit_cloud_topic.empty()) {
+      // An external detector's full-resolution fruit clouds: the planner's views (1 cm after
+      // pointcloud_roi's downsampling) then no longer feed the 4 mm fruit map.
+      fruit_cloud_ = nh.subscribe(fruit_cloud_topic, 2, &SuperellipsoidEstimatorPlugin::onFruitCloud, this);
+      fed_by = "fruit clouds on " + nh.resolveName(fruit_cloud_topic);
+    } else if (!camera_topic.empty()) {
+      camera_buffer_ = std::make_unique<ros_io::CameraFrameBuffer>(static_cast<std::size_t>(buffer_frames),
+                                                                   static_cast<std::size_t>(buffer_mb) << 20);
+      camera_ = nh.subscribe(camera_topic, 4, &SuperellipsoidEstimatorPlugin::onCameraCloud, this);
+      fed_by = "the camera frames on " + nh.resolveName(camera_topic) + " paired with the planner's views";
+    }
+    ROS_INFO("shape estimator '%s' ready in %s: superellipsoids on %s, fruit map fed by %s", name.c_str(),
+             nh.getNamespace().c_str(), nh.resolveName(superellipsoids_topic).c_str(), fed_by.c_str());
+  }
+  std::string name() const override { return name_; }
+  void insertView(const host::ViewData& view) override {
+    check();
+    ++planner_views_;
+    if (fruit_cloud_) return;  // the map is fed by the full-resolution topic
+    last_planner_view_ = ros::WallTime::now().toSec();
+    if (camera_buffer_ && view.source != host::ViewSource::kCameraFrame) {
+      std::string why;
+      if (integrateCameraFrame(view.time, &why)) return;
+      // The view's own cloud (pointcloud_roi's 1 cm voxels) is the fallback: less detail, but
+      // the view is not lost.
+      const std::size_t n = ++fallback_views_;
+      ROS_WARN_THROTTLE(10.0, "%s: view at %.3f s: no camera frame used (%s); its %s cloud went into the map instead "
+                        "(%zu views so far)", name_.c_str(), view.time, why.c_str(),
+                        view.source == host::ViewSource::kRoiCloud ? "1 cm ROI" : "own", n);
+    }
+    integrate(view);
+  }
+  void update() override {
+    check();
+    estimator_->update();
+    // Read and publish in one step with reset(): a fit that a reset overtook publishes the
+    // cleared state, never its own.
+    std::lock_guard<std::mutex> lock(publish_mutex_);
+    last_update_ = ros::WallTime::now().toSec();
+    publisher_->publish(estimator_->estimates(), estimator_->surface(), ros::Time::now());
+  }
+  void cancelUpdate() override {
+    if (estimator_) estimator_->cancelUpdate();
+  }
+  std::vector<FruitEstimate> fruits() const override { return check(), estimator_->fruits(); }
+  PointList extraTargets() const override { return check(), estimator_->extraTargets(); }
+  void reset() override {
+    check();
+    if (camera_buffer_) camera_buffer_->clear();
+    std::lock_guard<std::mutex> lock(publish_mutex_);
+    estimator_->reset();
+    publisher_->publish({}, {}, ros::Time::now());
+  }
+  std::vector<std::pair<std::string, std::string>> diagnostics() const override {
+    check();
+    const host::EstimatorStatus s = estimator_->status();
+    const double since = last_update_ > 0 ? ros::WallTime::now().toSec() - last_update_ : -1.0;
+    return {{"planner views received since start", std::to_string(planner_views_)},
+            {"views", std::to_string(s.views)},
+            {"views refused", std::to_string(s.views_refused)},
+            {"map blocks", std::to_string(s.blocks) + " of " + std::to_string(s.max_blocks)},
+            {"map memory [MiB]", std::to_string(s.memory_mb)},
+            {"points skipped (NaN/Inf, range)", std::to_string(s.points_skipped)},
+            {"rays outside the map", std::to_string(s.rays_outside)},
+            {"rays over the memory budget", std::to_string(s.rays_over_budget)},
+            {"fruits", std::to_string(s.fruits)},
+            {"camera frames received", std::to_string(frames_received_)},
+            {"views fed by their camera frame", std::to_string(s.camera_frames)},
+            {"views fed by their own (1 cm) cloud: no frame paired", std::to_string(fallback_views_)},
+            {"  of which: no frame within the tolerance", std::to_string(no_frame_)},
+            {"  of which: no tf for the frame", std::to_string(no_tf_)},
+            {"  of which: malformed frame", std::to_string(bad_frames_)},
+            {"camera clouds not organized (ignored)", std::to_string(not_organized_)},
+            {"camera clock jumps back (buffer cleared)", std::to_string(clock_jumps_)},
+            {"camera frames too large for the buffer", std::to_string(too_large_)},
+            {"camera frames evicted unpaired", std::to_string(camera_buffer_ ? camera_buffer_->evicted() : 0)},
+            {"input: fruit points masked", std::to_string(s.masked_points)},
+            {"input: dropped at depth edges", std::to_string(s.depth_edge_points)},
+            {"input: dropped as veil points (1 cm views)", std::to_string(s.veil_points)},
+            {"input: dropped as outliers", std::to_string(s.outlier_points)},
+            {"seconds since the last update", since < 0 ? "never" : std::to_string(since)}};
+  }
+
+ private:
+  void integrate(const host::ViewData& view) {
+    estimator_->insertView(view);
+    const IntegrationReport r = estimator_->lastIntegration();
+    if (!r.ok()) ROS_WARN("%s: view skipped: %s", name_.c_str(), r.error.c_str());
+    // Throttled: a camera that keeps seeing beyond the budget would otherwise log every view.
+    // The totals are gathered only when the message is printed (the macro evaluates its
+    // arguments then): they walk the map's blocks.
+    if (!r.warning.empty())
+      ROS_WARN_THROTTLE(10.0, "%s: %s (%s)", name_.c_str(), r.warning.c_str(), totals().c_str());
+  }
+  void onFruitCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    try {
+      PointList points;
+      std::size_t non_finite = 0;
+      std::string error;
+      if (!ros_io::fromCloud(*msg, &points, &non_finite, &error)) {
+        ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: %s", name_.c_str(), error.c_str());
+        return;
+      }
+      if (msg->header.frame_id.empty() || msg->header.frame_id == map_frame_) {
+        ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: it must be in the camera frame (the sensor origin), not '%s'",
+                          name_.c_str(), msg->header.frame_id.c_str());
+        return;
+      }
+      const Eigen::Isometry3d sensor_to_map = tf2::transformToEigen(
+          tf_buffer_->lookupTransform(map_frame_, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2)));
+      for (auto& p : points) p = sensor_to_map * p;
+      integrate({points, points, sensor_to_map, msg->header.stamp.toSec(), host::ViewSource::kFruitCloud});
+      own_updates_->request();
+    } catch (const tf2::TransformException& e) {
+      ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: no transform to %s (%s)", name_.c_str(), map_frame_.c_str(), e.what());
+    } catch (const std::exception& e) {  // std::bad_alloc among them: drop this cloud, keep running
+      ROS_ERROR("%s: fruit cloud dropped: %s", name_.c_str(), e.what());
+    }
+  }
+  // The buffered frame nearest the view's stamp, with its pose from tf at the frame's stamp,
+  // through the whole input stage into the map. False (and why) if there is none to use.
+  bool integrateCameraFrame(double stamp, std::string* why) {
+    if (!(stamp > 0.0)) {
+      *why = "the view has no stamp to pair a frame with";
+      ++no_frame_;
+      return false;
+    }
+    const sensor_msgs::PointCloud2ConstPtr msg =
+        camera_buffer_->take(ros::Time(stamp), pair_tolerance_,
+                            frames_received_ > 0 || camera_.getNumPublishers() > 0 ? kFrameWait : 0.0);
+    if (!msg) {
+      *why = frames_received_ == 0 ? "nothing received on the camera topic"
+                                   : "no camera frame within " + std::to_string(pair_tolerance_) + " s of the view";
+      ++no_frame_;
+      return false;
+    }
+    return integrateFrame(msg, why);
+  }
+  bool integrateFrame(const sensor_msgs::PointCloud2ConstPtr& msg, std::string* why) {
+    Eigen::Isometry3d pose;
+    try {
+      pose = tf2::transformToEigen(
+          tf_buffer_->lookupTransform(map_frame_, msg->header.frame_id, msg->header.stamp, ros::Duration(0.05)));
+    } catch (const tf2::TransformException& e) {
+      *why = std::string("no tf for the frame: ") + e.what();
+      ++no_tf_;
+      return false;
+    }
+    OrganizedFrame frame;
+    if (!ros_io::fromOrganizedCloud(*msg, &frame, why)) {
+      ++bad_frames_;
+      return false;
+    }
+    const PointList none;
+    host::ViewData view{none, none, pose, msg->header.stamp.toSec(), host::ViewSource::kCameraFrame};
+    view.camera_frame = &frame;
+    integrate(view);
+    return true;
+  }
+  void onCameraCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    try {
+      ++frames_received_;
+      if (msg->height <= 1) {
+        ROS_WARN_THROTTLE(10.0, "%s: camera cloud ignored (%zu so far): not organized (height %u); camera_cloud_topic "
+                          "must be the camera driver's cloud", name_.c_str(), std::size_t(++not_organized_), msg->height);
+        return;
+      }
+      switch (camera_buffer_->push(msg)) {
+        case ros_io::CameraFrameBuffer::Push::kClockJumpedBack:
+          ++clock_jumps_;
+          ROS_WARN("%s: camera stamps went back in time (a bag looping?): buffered frames dropped, the map kept",
+                   name_.c_str());
+          break;
+        case ros_io::CameraFrameBuffer::Push::kTooLarge:
+          ROS_WARN_THROTTLE(10.0, "%s: camera cloud of %zu bytes exceeds camera_buffer_mb; ignored (%zu so far)",
+                            name_.c_str(), msg->data.size(), std::size_t(++too_large_));
+          return;
+        case ros_io::CameraFrameBuffer::Push::kStored:
+          break;
+      }
+      // Without a planner (no view for a while), a frame is taken when the camera has come to
+      // rest, as pointcloud_roi's roi_cloud: once per rest, never every frame.
+      if (ros::WallTime::now().toSec() - last_planner_view_ > kStandaloneAfter) integrateIfStill(msg);
+    } catch (const std::exception& e) {  // std::bad_alloc among them: drop this frame, keep running
+      ROS_ERROR("%s: camera cloud dropped: %s", name_.c_str(), e.what());
+    }
+  }
+  void integrateIfStill(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    Eigen::Isometry3d pose;
+    try {
+      pose = tf2::transformToEigen(
+          tf_buffer_->lookupTransform(map_frame_, msg->header.frame_id, msg->header.stamp, ros::Duration(0.1)));
+    } catch (const tf2::TransformException&) {
+      ++no_tf_;
+      return;
+    }
+    {
+      std::lock_guard<std::mutex> lock(still_mutex_);
+      const bool still = have_last_pose_ && (pose.translation() - last_pose_.translation()).norm() < 1e-2 &&
+                         Eigen::AngleAxisd(pose.linear().transpose() * last_pose_.linear()).angle() < 1e-2;
+      last_pose_ = pose;
+      have_last_pose_ = true;
+      if (!still) {
+        rest_taken_ = false;
+        return;
+      }
+      if (rest_taken_) return;
+      rest_taken_ = true;
+    }
+    sensor_msgs::PointCloud2ConstPtr frame = camera_buffer_->take(msg->header.stamp, 0.0);  // not again for a view
+    if (!frame) frame = msg;
+    std::string why;
+    if (!integrateFrame(frame, &why)) {
+      ROS_WARN_THROTTLE(10.0, "%s: still camera frame not used: %s", name_.c_str(), why.c_str());
+      return;
+    }
+    own_updates_->request();
+  }
+  bool clearMap(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
+    reset();
+    ROS_INFO("%s: fruit map cleared", name_.c_str());
+    return true;
+  }
+  bool saveMap(FilePath::Request& req, FilePath::Response& res) {
+    std::string error;
+    res.success = estimator_->saveMap(req.file_path, &error);
+    res.message = res.success ? "saved " + req.file_path : error;
+    return true;
+  }
+  bool loadMap(FilePath::Request& req, FilePath::Response& res) {
+    std::string error;
+    res.success = estimator_->loadMap(req.file_path, &error);
+    if (res.success) own_updates_->request();
+    res.message = res.success ? "loaded " + req.file_path : error;
+    return true;
+  }
+  std::string totals() const {
+    const host::EstimatorStatus s = estimator_->status();
+    char text[256];
+    std::snprintf(text, sizeof(text),
+                  "since start: %zu points skipped, %zu rays outside the map, %zu rays over the memory budget; "
+                  "%zu of %zu blocks, %.0f MiB", s.points_skipped, s.rays_outside, s.rays_over_budget, s.blocks,
+                  s.max_blocks, s.memory_mb);
+    return text;
+  }
+  void check() const {
+    if (!estimator_) throw std::runtime_error("shape estimator used before initialize()");
+  }
+  std::string name_ = "superellipsoid", map_frame_;
+  std::unique_ptr<host::SuperellipsoidEstimator> estimator_;
+  std::unique_ptr<ros_io::FruitPublisher> publisher_;
+  std::atomic<double> last_update_{0.0};  // wall time of the last update [s]
+  std::mutex publish_mutex_;  // orders publishing after an update with a reset's
+  std::unique_ptr<host::UpdateWorker> own_updates_;
+  ros::ServiceServer clear_, save_, load_;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  ros::Subscriber fruit_cloud_;
+  // The camera input (camera_cloud_topic).
+  static constexpr double kStandaloneAfter = 5.0;  // [s] without a planner view: frames taken at rest
+  // [s] a view built from a frame (pointcloud_roi) may overtake the frame on another connection
+  static constexpr double kFrameWait = 0.05;
+  double pair_tolerance_ = 0.05;                   // [s] view stamp to frame stamp
+  std::unique_ptr<ros_io::CameraFrameBuffer> camera_buffer_;
+  ros::Subscriber camera_;
+  std::atomic<double> last_planner_view_{0.0};  // wall time [s]
+  std::atomic<std::size_t> planner_views_{0}, frames_received_{0}, fallback_views_{0}, no_frame_{0}, no_tf_{0}, bad_frames_{0},
+      not_organized_{0}, clock_jumps_{0}, too_large_{0};
+  std::mutex still_mutex_;  // guards the standalone rest detection below
+  Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();
+  bool have_last_pose_ = false, rest_taken_ = false;
+};
+
+}  // namespace fruit_shape_completion
+
+PLUGINLIB_EXPORT_CLASS(fruit_shape_completion::SuperellipsoidEstimatorPlugin, fruit_shape_completion::ShapeEstimatorPlugin)
