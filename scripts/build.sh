@@ -8,6 +8,13 @@ BUILD_DIR="${BUILD_DIR:-$ROOT/build}"
 BUILD_TYPE="${BUILD_TYPE:-Release}"
 # catkin's helpers need Debian's python (the pyenv python3 on PATH lacks catkin_pkg).
 export PATH="/usr/bin:$PATH"
+# The upstream message packages, built once in their own small workspace, as a user's workspace
+# holds them; the package builds on top of it.
+UPSTREAM_DEVEL="$("$ROOT/scripts/upstream_ws.sh")"
+set +u
+# shellcheck disable=SC1091
+source "$UPSTREAM_DEVEL/setup.bash"
+set -u
 if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
   cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" \
         -DPYTHON_EXECUTABLE=/usr/bin/python3 >"$BUILD_DIR.configure.log" 2>&1 || {

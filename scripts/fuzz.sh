@@ -15,6 +15,11 @@ TARGETS=("$@")
 "$ROOT/scripts/setup.sh"
 command -v clang++ >/dev/null || { echo "fuzz: clang++ is needed (apt-get install clang)" >&2; exit 2; }
 export PATH="/usr/bin:$PATH"
+UPSTREAM_DEVEL="$("$ROOT/scripts/upstream_ws.sh")"
+set +u
+# shellcheck disable=SC1091
+source "$UPSTREAM_DEVEL/setup.bash"
+set -u
 BUILD_DIR="$ROOT/build-fuzz"
 FLAGS="-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer"
 if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then

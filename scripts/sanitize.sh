@@ -17,6 +17,11 @@ case "$KIND" in
 esac
 "$ROOT/scripts/setup.sh"
 export PATH="/usr/bin:$PATH"
+UPSTREAM_DEVEL="$("$ROOT/scripts/upstream_ws.sh")"
+set +u
+# shellcheck disable=SC1091
+source "$UPSTREAM_DEVEL/setup.bash"
+set -u
 BUILD_DIR="$ROOT/build-$KIND"
 if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
   cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPYTHON_EXECUTABLE=/usr/bin/python3 \

@@ -1,6 +1,6 @@
 // Someone else's planner: the README's snippet, compiled as written, runs one view of a fruit
 // through the plugin (loaded by name through pluginlib) and must give targets on its hidden side.
-#include <fruit_shape_completion/PointcloudWithRoi.h>
+#include <pointcloud_roi_msgs/PointcloudWithRoi.h>
 #include <ros/ros.h>
 
 #include <cmath>
@@ -15,8 +15,8 @@ namespace {
 
 // One view from the origin of a 4 cm sphere 0.5 m ahead (camera frame = map frame here, z ahead):
 // its near cap at 2 mm spacing, as pointcloud_roi would send it, every point a ROI point.
-fruit_shape_completion::PointcloudWithRoi oneView() {
-  fruit_shape_completion::PointcloudWithRoi msg;
+pointcloud_roi_msgs::PointcloudWithRoi oneView() {
+  pointcloud_roi_msgs::PointcloudWithRoi msg;
   msg.cloud.header.frame_id = "camera";
   msg.cloud.height = 1;
   msg.cloud.point_step = 12;
@@ -46,7 +46,7 @@ fruit_shape_completion::PointcloudWithRoi oneView() {
 }
 
 void yourPlanner(ros::NodeHandle& private_nh, const std::string& map_frame,
-                 const fruit_shape_completion::PointcloudWithRoi& msg, std::vector<octomap::point3d>& targets) {
+                 const pointcloud_roi_msgs::PointcloudWithRoi& msg, std::vector<octomap::point3d>& targets) {
 #include README_SNIPPET_BODY
 }
 

@@ -19,8 +19,10 @@ awk '/snippet: use-from-your-planner/{f=1; next} f && /^```cpp/{g=1; next} g && 
 grep '^#include' "$WORK/snippet/all.inc" > "$WORK/snippet/includes.inc" || true
 grep -v '^#include' "$WORK/snippet/all.inc" > "$WORK/snippet/body.inc"
 
-export CMAKE_PREFIX_PATH="$WORK/install"
-export ROS_PACKAGE_PATH="$WORK/install/share:/usr/share"
+# The user's workspace holds the upstream message packages too (scripts/upstream_ws.sh).
+UPSTREAM_DEVEL="$("$HERE/../../scripts/upstream_ws.sh")"
+export CMAKE_PREFIX_PATH="$WORK/install:$UPSTREAM_DEVEL"
+export ROS_PACKAGE_PATH="$WORK/install/share:$UPSTREAM_DEVEL/share:/usr/share"
 export LD_LIBRARY_PATH="$WORK/install/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 cmake -S "$HERE" -B "$WORK/build" -DPYTHON_EXECUTABLE=/usr/bin/python3 -DSNIPPET_DIR="$WORK/snippet" \
       -DCATKIN_DEVEL_PREFIX="$WORK/build/devel" > "$WORK/configure.log" || { cat "$WORK/configure.log"; exit 1; }

@@ -40,7 +40,7 @@ namespace {
 
 struct Frame {
   sensor_msgs::PointCloud2 cloud;  // camera frame, stamp set when sent
-  fruit_shape_completion::PointcloudWithRoi roi;
+  pointcloud_roi_msgs::PointcloudWithRoi roi;
   geometry_msgs::Transform pose;
 };
 
@@ -119,7 +119,7 @@ int main(int argc, char** argv) {
     frames.push_back(std::move(out));
   }
   ros::Publisher camera_pub = nh.advertise<sensor_msgs::PointCloud2>("/camera/depth/points", 4);
-  ros::Publisher roi_pub = ros_io::advertiseUpstreamPointcloudWithRoi(nh, ros_io::kUpstreamRoiTopic, 4);
+  ros::Publisher roi_pub = nh.advertise<pointcloud_roi_msgs::PointcloudWithRoi>(ros_io::kUpstreamRoiTopic, 4);
   tf2_ros::TransformBroadcaster tf;
   std::mutex diag_mutex;
   std::map<std::string, std::string> diag;
@@ -201,7 +201,7 @@ int main(int argc, char** argv) {
     cloud.header.stamp = stamp;
     camera_pub.publish(cloud);
     if (sent % static_cast<std::size_t>(frames_per_view) == 0) {
-      fruit_shape_completion::PointcloudWithRoi roi = f.roi;
+      pointcloud_roi_msgs::PointcloudWithRoi roi = f.roi;
       roi.cloud.header.stamp = stamp;
       roi_pub.publish(roi);
       ++views;

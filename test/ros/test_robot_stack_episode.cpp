@@ -4,7 +4,7 @@
 // input) within the trial-to-trial spread, and every view must have reached the map through its
 // camera frame, not the 1 cm fallback.
 #include <diagnostic_msgs/DiagnosticArray.h>
-#include <fruit_shape_completion/SuperellipsoidArray.h>
+#include <superellipsoid_msgs/SuperellipsoidArray.h>
 #include <fruit_shape_completion/instrument/sim/fruit_truth.h>
 #include <fruit_shape_completion/instrument/sim/procedural_scene.h>
 #include <gtest/gtest.h>
@@ -30,7 +30,7 @@ bool waitFor(Pred pred, double seconds) {
 }
 
 // Fruits within 2 cm of a red ground-truth fruit's centre with volume accuracy above 0.8.
-int truthMatched(const SuperellipsoidArray& fits, const std::vector<sim::FruitTruth>& truth) {
+int truthMatched(const superellipsoid_msgs::SuperellipsoidArray& fits, const std::vector<sim::FruitTruth>& truth) {
   int good = 0;
   for (const auto& s : fits.superellipsoids) {
     double best = 1e9, acc = -1;
@@ -56,15 +56,15 @@ long asCount(const std::map<std::string, std::string>& values, const std::string
 
 TEST(RobotStackEpisode, PluginFedBySubscriptionsMatchesTheInProcessEstimator) {
   ros::NodeHandle nh;
-  SuperellipsoidArray in_process, over_ros;
+  superellipsoid_msgs::SuperellipsoidArray in_process, over_ros;
   std::size_t over_ros_messages = 0;
   long views = -1;
   std::map<std::string, std::string> diag;
-  ros::Subscriber a = nh.subscribe<SuperellipsoidArray>(
+  ros::Subscriber a = nh.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
       "/sim_viewpoint_planner/superellipsoid/superellipsoids", 5,
-      [&](const SuperellipsoidArrayConstPtr& m) { in_process = *m; });
-  ros::Subscriber b = nh.subscribe<SuperellipsoidArray>(
-      "/capsicum_superellipsoid_detector/superellipsoids", 50, [&](const SuperellipsoidArrayConstPtr& m) {
+      [&](const superellipsoid_msgs::SuperellipsoidArrayConstPtr& m) { in_process = *m; });
+  ros::Subscriber b = nh.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
+      "/capsicum_superellipsoid_detector/superellipsoids", 50, [&](const superellipsoid_msgs::SuperellipsoidArrayConstPtr& m) {
         over_ros = *m;
         ++over_ros_messages;
       });

@@ -1,6 +1,6 @@
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <fruit_shape_completion/FilePath.h>
-#include <fruit_shape_completion/SuperellipsoidArray.h>
+#include <superellipsoid_msgs/SuperellipsoidArray.h>
 #include <std_srvs/Empty.h>
 #include <unistd.h>
 #include <fruit_shape_completion/instrument/sim/analytic_depth_camera.h>
@@ -45,34 +45,13 @@ bool waitFor(Pred pred, double seconds) {
   return pred();
 }
 
-// ../shared/upstream, or "" if absent.
-std::string upstreamDir() {
-  const char* data = std::getenv("FSC_SHARED_DATA");
-  const std::string dir = std::string(data ? data : FSC_SOURCE_DIR "/../shared/data") + "/../upstream";
-  return std::ifstream(dir + "/README.md") ? dir : "";
-}
-
-// genmsg's md5sum of an upstream type, from the upstream .msg files.
-std::string upstreamMd5(const std::string& type) {
-  const std::string cmd = "/usr/bin/python3 " FSC_SOURCE_DIR "/test/ros/upstream_md5.py " + upstreamDir() + " " + type;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return "";
-  char line[128] = {0};
-  const bool ok = std::fgets(line, sizeof(line), pipe) != nullptr;
-  pclose(pipe);
-  std::string md5 = ok ? line : "";
-  while (!md5.empty() && (md5.back() == '\n' || md5.back() == '\r')) md5.pop_back();
-  return md5;
-}
-
-// A received message's bytes read as a superellipsoid_msgs subscriber would read them
-// (ShapeShifter::instantiate() would refuse this package's type name).
-fruit_shape_completion::SuperellipsoidArray asSuperellipsoidArray(const topic_tools::ShapeShifter& msg) {
+// A received message's bytes read as a superellipsoid_msgs subscriber reads them.
+superellipsoid_msgs::SuperellipsoidArray asSuperellipsoidArray(const topic_tools::ShapeShifter& msg) {
   std::vector<std::uint8_t> bytes(msg.size());
   ros::serialization::OStream out(bytes.data(), bytes.size());
   msg.write(out);
   ros::serialization::IStream in(bytes.data(), bytes.size());
-  fruit_shape_completion::SuperellipsoidArray arr;
+  superellipsoid_msgs::SuperellipsoidArray arr;
   ros::serialization::deserialize(in, arr);
   return arr;
 }
@@ -81,7 +60,7 @@ fruit_shape_completion::SuperellipsoidArray asSuperellipsoidArray(const topic_to
 // voxel-downsampled to 1 cm, the indices of its red points, the camera pose as the transform.
 // `in_camera_frame` instead keeps the cloud in the camera frame (the transform then takes it to
 // the map), the other case upstream's planner handles.
-fruit_shape_completion::PointcloudWithRoi roiCloud(const AnalyticScene& scene, std::size_t fruit_shapes,
+pointcloud_roi_msgs::PointcloudWithRoi roiCloud(const AnalyticScene& scene, std::size_t fruit_shapes,
                                                    const PinholeCamera& camera, bool in_camera_frame = false) {
   const DepthScan scan = renderDepth(scene, camera, 0.0005, 3);
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
@@ -101,7 +80,7 @@ fruit_shape_completion::PointcloudWithRoi roiCloud(const AnalyticScene& scene, s
   grid.setInputCloud(full);
   grid.setLeafSize(0.01f, 0.01f, 0.01f);
   grid.filter(down);
-  fruit_shape_completion::PointcloudWithRoi msg;
+  pointcloud_roi_msgs::PointcloudWithRoi msg;
   for (std::size_t i = 0; i < down.size(); ++i)
     if (down[i].r > down[i].g) msg.roi_indices.push_back(static_cast<std::int32_t>(i));  // the red test
   pcl::toROSMsg(down, msg.cloud);
@@ -162,18 +141,6 @@ void setOneEstimator(const ros::NodeHandle& nh, const std::string& name, const s
 
 }  // namespace
 
-TEST(UpstreamMessages, Md5sumsEqualGenmsgsFromTheUpstreamFiles) {
-  if (upstreamDir().empty()) GTEST_SKIP() << "../shared/upstream is absent: upstream message files not available";
-  EXPECT_EQ(upstreamMd5(ros_io::kUpstreamSuperellipsoidArrayType),
-            ros::message_traits::md5sum<fruit_shape_completion::SuperellipsoidArray>());
-  EXPECT_EQ(upstreamMd5(ros_io::kUpstreamPointcloudWithRoiType),
-            ros::message_traits::md5sum<fruit_shape_completion::PointcloudWithRoi>());
-  const std::string definition = ros_io::upstreamSuperellipsoidArrayDefinition();
-  EXPECT_NE(definition.find("MSG: superellipsoid_msgs/Superellipsoid"), std::string::npos) << definition;
-  EXPECT_EQ(definition.find("MSG: fruit_shape_completion"), std::string::npos) << definition;
-  EXPECT_EQ(definition.find("SuperellipsoidFit[]"), std::string::npos) << definition;
-}
-
 TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUnseenSide) {
   ros::NodeHandle nh("~/glue");
   setOneEstimator(nh, "superellipsoid", "fruit_shape_completion/SuperellipsoidEstimator");
@@ -215,10 +182,7 @@ TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUns
 
 TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids) {
   ros::NodeHandle nh;
-  ros::AdvertiseOptions options;
-  options.init<fruit_shape_completion::PointcloudWithRoi>(ros_io::kUpstreamRoiTopic, 10);
-  options.datatype = ros_io::kUpstreamPointcloudWithRoiType;  // as pointcloud_roi advertises it
-  ros::Publisher pub = nh.advertise(options);
+  ros::Publisher pub = nh.advertise<pointcloud_roi_msgs::PointcloudWithRoi>(ros_io::kUpstreamRoiTopic, 10);
   topic_tools::ShapeShifter::ConstPtr last;
   ros::Subscriber sub = nh.subscribe<topic_tools::ShapeShifter>(
       ros_io::kUpstreamSuperellipsoidsTopic, 5, [&](const topic_tools::ShapeShifter::ConstPtr& m) { last = m; });
@@ -228,14 +192,13 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
     pub.publish(roiCloud(s.scene, 1, camera));
     ros::WallDuration(0.2).sleep();
   }
-  fruit_shape_completion::SuperellipsoidArray arr;
+  superellipsoid_msgs::SuperellipsoidArray arr;
   ASSERT_TRUE(waitFor([&] {
     if (!last) return false;
     arr = asSuperellipsoidArray(*last);
-    return arr.superellipsoids.size() == 1 && last->getDataType() == ros_io::kUpstreamSuperellipsoidArrayType;
+    return arr.superellipsoids.size() == 1 && last->getDataType() == "superellipsoid_msgs/SuperellipsoidArray";
   }, 60.0)) << (last ? last->getDataType() : std::string("nothing received"));
-  EXPECT_EQ(last->getMD5Sum(), ros::message_traits::md5sum<fruit_shape_completion::SuperellipsoidArray>());
-  if (!upstreamDir().empty()) EXPECT_EQ(last->getMD5Sum(), upstreamMd5(ros_io::kUpstreamSuperellipsoidArrayType));
+  EXPECT_EQ(last->getMD5Sum(), ros::message_traits::md5sum<superellipsoid_msgs::SuperellipsoidArray>());
   EXPECT_NE(last->getMessageDefinition().find("MSG: superellipsoid_msgs/Superellipsoid"), std::string::npos);
   // Field by field: the shape, pose (angles in degrees) and volume describe the true fruit.
   const auto& m = arr.superellipsoids[0];
@@ -524,10 +487,10 @@ TEST(FruitPublisher, CloudsRoundTripAndLyingHeadersAreRefused) {
 TEST(SurfaceCloudNode, SkipsBadCloudsAndFitsGoodOnes) {
   ros::NodeHandle nh;
   ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("/surface_cloud_node/surface_cloud", 1, true);
-  fruit_shape_completion::SuperellipsoidArray last;
+  superellipsoid_msgs::SuperellipsoidArray last;
   int received = 0;
-  ros::Subscriber sub = nh.subscribe<fruit_shape_completion::SuperellipsoidArray>(
-      "/surface_cloud_node/superellipsoids", 5, [&](const fruit_shape_completion::SuperellipsoidArrayConstPtr& m) {
+  ros::Subscriber sub = nh.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
+      "/surface_cloud_node/superellipsoids", 5, [&](const superellipsoid_msgs::SuperellipsoidArrayConstPtr& m) {
         last = *m;
         ++received;
       });
@@ -549,11 +512,11 @@ TEST(SurfaceCloudNode, SkipsBadCloudsAndFitsGoodOnes) {
 
 TEST(PlannerNode, HeadlessEpisodePublishesFruitsMatchingTheTruth) {
   ros::NodeHandle nh;
-  fruit_shape_completion::SuperellipsoidArray last;
+  superellipsoid_msgs::SuperellipsoidArray last;
   std::size_t markers = 0;
-  ros::Subscriber sub = nh.subscribe<fruit_shape_completion::SuperellipsoidArray>(
+  ros::Subscriber sub = nh.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
       "/sim_viewpoint_planner/superellipsoid/superellipsoids", 5,
-      [&](const fruit_shape_completion::SuperellipsoidArrayConstPtr& m) { last = *m; });
+      [&](const superellipsoid_msgs::SuperellipsoidArrayConstPtr& m) { last = *m; });
   ros::Subscriber msub = nh.subscribe<visualization_msgs::MarkerArray>(
       "/sim_viewpoint_planner/superellipsoid/fruit_markers", 5,
       [&](const visualization_msgs::MarkerArrayConstPtr& m) { markers = m->markers.size(); });

@@ -203,7 +203,7 @@ int main(int argc, char** argv) {
   ros::Publisher camera_pub, roi_pub, done_pub = pnh.advertise<std_msgs::UInt32>("episode_done", 1, true);
   if (publish_sensors) {
     camera_pub = pnh.advertise<sensor_msgs::PointCloud2>(camera_topic, 2);
-    roi_pub = ros_io::advertiseUpstreamPointcloudWithRoi(pnh, roi_topic, 2);
+    roi_pub = pnh.advertise<pointcloud_roi_msgs::PointcloudWithRoi>(roi_topic, 2);
     // A robot's camera streams before the planner's first view; here the first view is the
     // first frame, so give subscribers a moment to connect to both topics.
     const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(10.0);
@@ -225,7 +225,7 @@ int main(int argc, char** argv) {
           camera_pub.publish(ros_io::toOrganizedCloud(sim::organizedFrame(frame), sensor_frame, stamp));
           // pointcloud_roi publishes after its own processing of the same frame.
           const planner::RoiCloud roi = planner::pointcloudRoi(frame, params.roi_leaf, red_test);
-          fruit_shape_completion::PointcloudWithRoi msg;
+          pointcloud_roi_msgs::PointcloudWithRoi msg;
           msg.cloud = ros_io::toCloud(roi.points, map_frame, stamp, roi.colours);
           msg.roi_indices = roi.roi_indices;
           msg.transform = t.transform;

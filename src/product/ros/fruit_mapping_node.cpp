@@ -26,8 +26,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (estimators->empty()) ROS_WARN("no shape estimators configured in %s/shape_estimators", pnh.getNamespace().c_str());
-  ros::Subscriber sub = ros_io::subscribeUpstreamPointcloudWithRoi(
-      pnh, roi_topic, 2, [&](const fruit_shape_completion::PointcloudWithRoiConstPtr& msg) {
+  ros::Subscriber sub = pnh.subscribe<pointcloud_roi_msgs::PointcloudWithRoi>(
+      roi_topic, 2, [&](const pointcloud_roi_msgs::PointcloudWithRoiConstPtr& msg) {
         estimators->insertView(msg->cloud, msg->roi_indices, msg->transform, msg->cloud.header.stamp.toSec());
       });
   ros::ServiceServer clear = pnh.advertiseService<std_srvs::Empty::Request, std_srvs::Empty::Response>(

@@ -163,7 +163,7 @@ void surfaceTriangles(const Superellipsoid& se, std::vector<geometry_msgs::Point
 
 FruitPublisher::FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic)
     : frame_(map_frame) {
-  superellipsoids_ = advertiseUpstreamSuperellipsoids(nh, superellipsoids_topic, true);
+  superellipsoids_ = nh.advertise<superellipsoid_msgs::SuperellipsoidArray>(superellipsoids_topic, 1, true);
   markers_ = nh.advertise<visualization_msgs::MarkerArray>("fruit_markers", 1, true);
   clusters_ = nh.advertise<sensor_msgs::PointCloud2>("clusters", 1, true);
   missing_ = nh.advertise<sensor_msgs::PointCloud2>("missing_surface", 1, true);
@@ -171,7 +171,7 @@ FruitPublisher::FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame
 }
 
 void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const PointList& surface, const ros::Time& stamp) {
-  fruit_shape_completion::SuperellipsoidArray arr;
+  superellipsoid_msgs::SuperellipsoidArray arr;
   arr.header.frame_id = frame_;
   arr.header.stamp = stamp;
   visualization_msgs::MarkerArray markers;
@@ -188,7 +188,7 @@ void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const Poi
     }
     if (!f.accepted) continue;
     const Superellipsoid& s = f.shape;
-    fruit_shape_completion::SuperellipsoidFit m;
+    superellipsoid_msgs::Superellipsoid m;
     m.header = arr.header;
     m.id = static_cast<std::uint32_t>(std::max(f.id, 0));
     m.object_tracking = true;
