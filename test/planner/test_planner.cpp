@@ -112,6 +112,29 @@ class FlakyEstimator : public ShapeEstimator {
   mutable std::atomic<unsigned> calls_{0};
 };
 
+// Views of one fruit from around it (`turn` radians apart), 40 % of it seen in each, scanned at
+// 2 mm, with the camera 0.4 m away looking at it.
+struct FruitViews {
+  std::vector<PointList> clouds;
+  std::vector<Eigen::Isometry3d> poses;
+};
+FruitViews viewsAround(const Superellipsoid& truth, int n, double turn) {
+  FruitViews out;
+  for (int v = 0; v < n; ++v) {
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(std::cos(turn * v), -1, std::sin(turn * v));
+    scan.visible_fraction = 0.4;
+    scan.voxel = 0.002;
+    scan.seed = v;
+    out.clouds.push_back(scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan));
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+    out.poses.push_back(pose);
+  }
+  return out;
+}
+
 }  // namespace
 
 TEST(RoiOcTree, ScanMarksFreeOccupiedAndRoiCells) {
@@ -490,20 +513,9 @@ TEST(ShapeEstimatorHost, ConcurrentViewsQueriesResetsAndThrowingEstimators) {
   host.add(std::make_unique<SuperellipsoidEstimator>());
   std::mt19937 rng(5);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  std::vector<PointList> clouds;
-  std::vector<Eigen::Isometry3d> poses;
-  for (int v = 0; v < 4; ++v) {
-    ScanParams scan;
-    scan.view_dir = Eigen::Vector3d(std::cos(1.5 * v), -1, std::sin(1.5 * v));
-    scan.visible_fraction = 0.4;
-    scan.voxel = 0.002;
-    scan.seed = v;
-    clouds.push_back(scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan));
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
-    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
-    poses.push_back(pose);
-  }
+  const FruitViews views = viewsAround(truth, 4, 1.5);
+  const std::vector<PointList>& clouds = views.clouds;
+  const std::vector<Eigen::Isometry3d>& poses = views.poses;
   const PointList none;
   std::atomic<bool> done{false};
   std::atomic<int> queries{0}, resets{0};
@@ -766,20 +778,9 @@ TEST(ShapeEstimatorHost, BackgroundHostUnderSpinnerThreadsPlanningAndServiceCall
   host.add(std::move(owned));
   std::mt19937 rng(9);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  std::vector<PointList> clouds;
-  std::vector<Eigen::Isometry3d> poses;
-  for (int v = 0; v < 8; ++v) {
-    ScanParams scan;
-    scan.view_dir = Eigen::Vector3d(std::cos(0.8 * v), -1, std::sin(0.8 * v));
-    scan.visible_fraction = 0.4;
-    scan.voxel = 0.002;
-    scan.seed = v;
-    clouds.push_back(scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan));
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
-    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
-    poses.push_back(pose);
-  }
+  const FruitViews views = viewsAround(truth, 8, 0.8);
+  const std::vector<PointList>& clouds = views.clouds;
+  const std::vector<Eigen::Isometry3d>& poses = views.poses;
   const PointList none;
   const std::string path = "/tmp/fsc_background_host_" + std::to_string(::getpid()) + ".tsdf";
   std::atomic<bool> done{false};

@@ -8,6 +8,8 @@
 #include <fruit_shape_completion/instrument/sim/fruit_truth.h>
 #include <fruit_shape_completion/instrument/sim/procedural_scene.h>
 #include <gtest/gtest.h>
+
+#include "wait_for.h"
 #include <ros/ros.h>
 #include <std_msgs/UInt32.h>
 
@@ -18,16 +20,7 @@ using namespace fruit_shape_completion;
 
 namespace {
 
-template <typename Pred>
-bool waitFor(Pred pred, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    ros::spinOnce();
-    if (pred()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return pred();
-}
+using test::waitFor;
 
 // Fruits within 2 cm of a red ground-truth fruit's centre with volume accuracy above 0.8.
 int truthMatched(const superellipsoid_msgs::SuperellipsoidArray& fits, const std::vector<sim::FruitTruth>& truth) {

@@ -14,6 +14,8 @@
 #include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
+
+#include "wait_for.h"
 #include <ros/ros.h>
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/point_cloud.h>
@@ -34,16 +36,7 @@ using namespace fruit_shape_completion;
 namespace {
 
 // Waits (spinning) until pred() or the timeout; true if pred() held.
-template <typename Pred>
-bool waitFor(Pred pred, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    ros::spinOnce();
-    if (pred()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return pred();
-}
+using test::waitFor;
 
 // A received message's bytes read as a superellipsoid_msgs subscriber reads them.
 superellipsoid_msgs::SuperellipsoidArray asSuperellipsoidArray(const topic_tools::ShapeShifter& msg) {
@@ -408,6 +401,12 @@ TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
   EXPECT_TRUE(waitFor([&] { return count("camera clouds not organized (ignored)") == 1; }, 10.0));
   pub.publish(ros_io::toOrganizedCloud(organizedRender(s.scene, s.cameras[0]), poses[0].child_frame_id, ros::Time(10.0)));
   EXPECT_TRUE(waitFor([&] { return count("camera clock jumps back (buffer cleared)") == 1; }, 10.0));
+  EXPECT_EQ(plugin->fruits().size(), 1u);
+  // ... and goes on at the bag's new time: a view stamped like the new frame pairs with it.
+  const std::size_t fed = count("views fed by their camera frame");
+  plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), 10.0, host::ViewSource::kRoiCloud});
+  EXPECT_EQ(count("views fed by their camera frame"), fed + 1);
+  EXPECT_EQ(count("camera clock jumps back (buffer cleared)"), 1u);  // warned once, not per frame
   EXPECT_EQ(plugin->fruits().size(), 1u);
   plugin.reset();
 }
