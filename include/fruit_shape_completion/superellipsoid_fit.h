@@ -29,6 +29,9 @@ struct FitParams {
   // Also start with the shape's z axis along world x and y, keep the lowest cost. Guards
   // against the local minima of a single start at rpy = 0.
   bool extra_starts = true;
+  // A solve ends when an iteration changes the cost by less than this fraction (Ceres' function
+  // tolerance). 1e-4 halves the fit time but measured 1.6 fewer MA50 fruits on scenario 2.
+  double function_tolerance = 1e-6;
   // A converged fit whose RMS radial residual exceeds this is implausible and rejected.
   double max_rms = 0.006;
   // Throws std::invalid_argument naming the first bad value.

@@ -34,9 +34,9 @@ class CameraFrameBuffer {
   // was cleared and holds only this frame. kTooLarge: one frame exceeds max_bytes, not stored.
   Push push(const sensor_msgs::PointCloud2ConstPtr& cloud);
   // The frame nearest `stamp` within `tolerance` (nullptr if none); it and older frames leave
-  // the buffer (a view is never paired with an earlier frame after a later one). While no frame
-  // at or after `stamp` has arrived, waits up to `wait` seconds (wall time) for one: a view
-  // derived from a frame can overtake that frame on another connection.
+  // the buffer (a view is never paired with an earlier frame after a later one). If none pairs
+  // and no frame at or after `stamp` has arrived, waits up to `wait` seconds (wall time) for
+  // one: a view derived from a frame can overtake that frame on another connection.
   sensor_msgs::PointCloud2ConstPtr take(const ros::Time& stamp, double tolerance, double wait = 0.0);
   void clear();
   std::size_t size() const;

@@ -170,6 +170,7 @@ void FitParams::validate() const {
     fail("initial_e must lie within the exponent bounds");
   if (max_iterations < 1) fail("max_iterations must be >= 1");
   if (max_points != 0 && max_points < 11) fail("max_points must be 0 (all) or >= 11");
+  if (!(function_tolerance > 0.0 && function_tolerance < 1.0)) fail("function_tolerance must be in (0, 1)");
   if (!(max_rms > 0.0)) fail("max_rms must be > 0");
 }
 
@@ -208,6 +209,7 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
   options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
   options.max_num_iterations = params.max_iterations;
+  options.function_tolerance = params.function_tolerance;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;

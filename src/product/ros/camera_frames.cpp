@@ -116,12 +116,13 @@ CameraFrameBuffer::Push CameraFrameBuffer::push(const sensor_msgs::PointCloud2Co
 
 sensor_msgs::PointCloud2ConstPtr CameraFrameBuffer::take(const ros::Time& stamp, double tolerance, double wait) {
   std::unique_lock<std::mutex> lock(mutex_);
-  // The view's own frame (its stamp or later) may still be on its way: an older frame within
-  // the tolerance is only taken once it is clear that no nearer one is coming.
-  if (wait > 0.0 && newest_ < stamp) {
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(std::min(wait, 10.0));
-    pushed_.wait_until(lock, until, [&] { return !(newest_ < stamp); });
-  }
+  // The nearest frame that has arrived, at once: waiting for the view's own frame when an older
+  // one pairs would hold the planner's callback (a soak measured 36 ms a view). Only when none
+  // pairs yet does it wait, for a frame at or after the view's stamp.
+  sensor_msgs::PointCloud2ConstPtr frame = takeLocked(stamp, tolerance);
+  if (frame || !(wait > 0.0) || !(newest_ < stamp)) return frame;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(std::min(wait, 10.0));
+  pushed_.wait_until(lock, until, [&] { return !(newest_ < stamp); });
   return takeLocked(stamp, tolerance);
 }
 
