@@ -1,4 +1,5 @@
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <sensor_msgs/Image.h>
 #include <fruit_shape_completion/FilePath.h>
 #include <superellipsoid_msgs/SuperellipsoidArray.h>
 #include <std_srvs/Empty.h>
@@ -408,6 +409,79 @@ TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
   EXPECT_EQ(count("views fed by their camera frame"), fed + 1);
   EXPECT_EQ(count("camera clock jumps back (buffer cleared)"), 1u);  // warned once, not per frame
   EXPECT_EQ(plugin->fruits().size(), 1u);
+  plugin.reset();
+}
+
+// An external detector's mask (camera_mask_topic) replaces the red test for the frame with its
+// stamp; a mask that does not fit, or none, leaves the red test to decide, counted.
+TEST(Plugin, ADetectorsMaskReplacesTheRedTest) {
+  pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
+  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
+  ros::NodeHandle nh("~/masked");
+  nh.setParam("superellipsoids_topic", "superellipsoids");
+  nh.setParam("camera_cloud_topic", "masked_points");
+  nh.setParam("camera_mask_topic", "masked_mask");
+  plugin->initialize("masked", nh, "world");
+  auto count = [&](const std::string& key) {
+    for (const auto& kv : plugin->diagnostics())
+      if (kv.first == key) return std::stoul(kv.second);
+    ADD_FAILURE() << "no diagnostics entry '" << key << "'";
+    return 0ul;
+  };
+  const FruitOnALeaf s;
+  tf2_ros::StaticTransformBroadcaster tf;
+  geometry_msgs::TransformStamped pose = tf2::eigenToTransform(sim::cameraPose(s.cameras[0]));
+  pose.header.frame_id = "world";
+  pose.child_frame_id = "masked_optical";
+  tf.sendTransform(pose);
+  ros::Publisher cloud_pub = nh.advertise<sensor_msgs::PointCloud2>("masked_points", 4);
+  ros::Publisher mask_pub = nh.advertise<sensor_msgs::Image>("masked_mask", 4);
+  ASSERT_TRUE(waitFor([&] { return cloud_pub.getNumSubscribers() > 0 && mask_pub.getNumSubscribers() > 0; }, 10.0));
+  const OrganizedFrame frame = organizedRender(s.scene, s.cameras[0]);
+  const auto coarse = roiCloud(s.scene, 1, s.cameras[0]);
+  PointList all, fruit;
+  std::size_t bad = 0;
+  std::string err;
+  ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
+  std::size_t frames = 0, masks = 0;
+  // One view at `t`: its frame and, if `value` >= 0, a width x height mask of that value.
+  auto view = [&](double t, int value, unsigned width, unsigned height) {
+    if (value >= 0) {
+      sensor_msgs::Image m;
+      m.header.stamp = ros::Time(t);
+      m.width = width;
+      m.height = height;
+      m.encoding = "mono8";
+      m.step = width;
+      m.data.assign(std::size_t(width) * height, static_cast<std::uint8_t>(value));
+      mask_pub.publish(m);
+      ++masks;
+      ASSERT_TRUE(waitFor([&] { return count("camera masks received") == masks; }, 10.0));
+    }
+    cloud_pub.publish(ros_io::toOrganizedCloud(frame, "masked_optical", ros::Time(t)));
+    ++frames;
+    ASSERT_TRUE(waitFor([&] { return count("camera frames received") == frames; }, 10.0));
+    plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), t, host::ViewSource::kRoiCloud});
+  };
+  const unsigned w = static_cast<unsigned>(frame.width), h = static_cast<unsigned>(frame.height);
+  // The detector sees no fruit: nothing is masked, though the red test would find the pepper.
+  view(3000.0, 0, w, h);
+  EXPECT_EQ(count("views fed by their camera frame"), 1u);
+  EXPECT_EQ(count("input: fruit points masked"), 0u);
+  // The detector calls every pixel fruit: every pixel with depth is masked, far more than red.
+  view(3001.0, 255, w, h);
+  const std::size_t all_pixels = count("input: fruit points masked");
+  EXPECT_GT(all_pixels, 0u);
+  // A mask of another size is refused and the red test decides: fewer points than every pixel.
+  view(3002.0, 255, 10, 10);
+  EXPECT_EQ(count("camera masks refused (not mono8, wrong size)"), 1u);
+  const std::size_t red = count("input: fruit points masked") - all_pixels;
+  EXPECT_GT(red, 0u);
+  EXPECT_LT(red, all_pixels);
+  // A frame whose mask never came: the red test again, counted.
+  view(3003.0, -1, w, h);
+  EXPECT_EQ(count("camera frames without their mask (red test used)"), 1u);
+  EXPECT_EQ(count("views fed by their camera frame"), 4u);
   plugin.reset();
 }
 

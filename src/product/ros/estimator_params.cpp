@@ -50,7 +50,8 @@ void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>
 
 const std::vector<std::string>& pluginInputKeys() {
   static const std::vector<std::string> keys = {"superellipsoids_topic", "fruit_cloud_topic",     "camera_cloud_topic",
-                                                "camera_pair_tolerance", "camera_buffer_frames", "camera_buffer_mb"};
+                                                "camera_pair_tolerance", "camera_buffer_frames", "camera_buffer_mb",
+                                                "camera_mask_topic"};
   return keys;
 }
 

@@ -14,11 +14,15 @@
 
 #include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
+#include <sensor_msgs/Image.h>
 #include <std_srvs/Empty.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
 #include <atomic>
+#include <cmath>
+#include <cstring>
+#include <deque>
 #include <cstdio>
 #include <memory>
 #include <mutex>
@@ -30,6 +34,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   ~SuperellipsoidEstimatorPlugin() override {
     // No callback may start a view or a fit once the estimator is on its way out.
     camera_.shutdown();
+    masks_sub_.shutdown();
     fruit_cloud_.shutdown();
     clear_.shutdown();
     save_.shutdown();
@@ -42,11 +47,12 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     map_frame_ = map_frame;
     estimator_ = std::make_unique<host::SuperellipsoidEstimator>(ros_io::readEstimatorParams(nh, ros_io::pluginInputKeys()));
     std::string superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic, fruit_cloud_topic;
-    std::string camera_topic = "/camera/depth/points";
+    std::string camera_topic = "/camera/depth/points", mask_topic;
     int buffer_frames = 16, buffer_mb = 160;
     ros_io::readStringParam(nh, "superellipsoids_topic", &superellipsoids_topic);
     ros_io::readStringParam(nh, "fruit_cloud_topic", &fruit_cloud_topic);
     ros_io::readStringParam(nh, "camera_cloud_topic", &camera_topic);
+    ros_io::readStringParam(nh, "camera_mask_topic", &mask_topic);
     ros_io::readNumberParam(nh, "camera_pair_tolerance", &pair_tolerance_);
     ros_io::readIntParam(nh, "camera_buffer_frames", &buffer_frames);
     ros_io::readIntParam(nh, "camera_buffer_mb", &buffer_mb);
@@ -84,6 +90,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
                                                                    static_cast<std::size_t>(buffer_mb) << 20);
       camera_ = nh.subscribe(camera_topic, 4, &SuperellipsoidEstimatorPlugin::onCameraCloud, this);
       fed_by = "the camera frames on " + nh.resolveName(camera_topic) + " paired with the planner's views";
+      if (!mask_topic.empty()) {
+        max_masks_ = static_cast<std::size_t>(buffer_frames);
+        masks_sub_ = nh.subscribe(mask_topic, 4, &SuperellipsoidEstimatorPlugin::onMask, this);
+        fed_by += ", masked by " + nh.resolveName(mask_topic);
+      }
     }
     ROS_INFO("shape estimator '%s' ready in %s: superellipsoids on %s, fruit map fed by %s", name.c_str(),
              nh.getNamespace().c_str(), nh.resolveName(superellipsoids_topic).c_str(), fed_by.c_str());
@@ -149,6 +160,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"camera clouds not organized (ignored)", std::to_string(not_organized_)},
             {"camera clock jumps back (buffer cleared)", std::to_string(clock_jumps_)},
             {"camera frames too large for the buffer", std::to_string(too_large_)},
+            {"camera masks received", std::to_string(masks_received_)},
+            {"camera masks refused (not mono8, wrong size)", std::to_string(masks_refused_)},
+            {"camera frames without their mask (red test used)", std::to_string(frames_without_mask_)},
             {"camera frames evicted unpaired", std::to_string(camera_buffer_ ? camera_buffer_->evicted() : 0)},
             {"input: fruit points masked", std::to_string(s.masked_points)},
             {"input: dropped at depth edges", std::to_string(s.depth_edge_points)},
@@ -230,7 +244,46 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     const PointList none;
     host::ViewData view{none, none, pose, msg->header.stamp.toSec(), host::ViewSource::kCameraFrame};
     view.camera_frame = &frame;
+    std::vector<std::uint8_t> mask;
+    if (masks_sub_ && maskFor(msg->header.stamp, frame.width, frame.height, &mask)) view.fruit_mask = &mask;
     integrate(view);
+    return true;
+  }
+  void onMask(const sensor_msgs::ImageConstPtr& msg) {
+    ++masks_received_;
+    if (msg->encoding != "mono8" && msg->encoding != "8UC1") {
+      ROS_WARN_THROTTLE(10.0, "%s: camera mask ignored (%zu so far): encoding '%s', not mono8", name_.c_str(),
+                        std::size_t(++masks_refused_), msg->encoding.c_str());
+      return;
+    }
+    std::lock_guard<std::mutex> lock(masks_mutex_);
+    masks_.push_back(msg);
+    while (masks_.size() > max_masks_) masks_.pop_front();
+  }
+  // The mask with the frame's stamp as one byte per pixel; false (warned, counted) if there is
+  // none or it does not fit the frame: the red test then decides.
+  bool maskFor(const ros::Time& stamp, int width, int height, std::vector<std::uint8_t>* out) {
+    sensor_msgs::ImageConstPtr mask;
+    {
+      std::lock_guard<std::mutex> lock(masks_mutex_);
+      for (const auto& m : masks_)
+        if (std::abs((m->header.stamp - stamp).toSec()) < 1e-3) mask = m;
+    }
+    if (!mask) {
+      ROS_WARN_THROTTLE(10.0, "%s: no camera mask with the frame's stamp: the red test decides (%zu frames so far)",
+                        name_.c_str(), std::size_t(++frames_without_mask_));
+      return false;
+    }
+    if (static_cast<int>(mask->width) != width || static_cast<int>(mask->height) != height ||
+        mask->step < mask->width || mask->data.size() < std::size_t(mask->step) * mask->height) {
+      ROS_WARN_THROTTLE(10.0, "%s: camera mask of %ux%u refused for a %dx%d frame (%zu so far): the red test decides",
+                        name_.c_str(), mask->width, mask->height, width, height, std::size_t(++masks_refused_));
+      return false;
+    }
+    out->resize(static_cast<std::size_t>(width) * height);
+    for (int v = 0; v < height; ++v)
+      std::memcpy(out->data() + static_cast<std::size_t>(v) * width, mask->data.data() + std::size_t(v) * mask->step,
+                  static_cast<std::size_t>(width));
     return true;
   }
   void onCameraCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
@@ -342,6 +395,12 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::atomic<double> last_planner_view_{0.0};  // wall time [s]
   std::atomic<std::size_t> planner_views_{0}, frames_received_{0}, fallback_views_{0}, no_frame_{0}, no_tf_{0}, bad_frames_{0},
       not_organized_{0}, clock_jumps_{0}, too_large_{0};
+  // An external detector's masks (camera_mask_topic), matched to frames by stamp.
+  ros::Subscriber masks_sub_;
+  std::mutex masks_mutex_;
+  std::deque<sensor_msgs::ImageConstPtr> masks_;  // oldest first, at most max_masks_
+  std::size_t max_masks_ = 16;
+  std::atomic<std::size_t> masks_received_{0}, masks_refused_{0}, frames_without_mask_{0};
   std::mutex still_mutex_;  // guards the standalone rest detection below
   Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();
   bool have_last_pose_ = false, rest_taken_ = false;
