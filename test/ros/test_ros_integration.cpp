@@ -125,6 +125,14 @@ OrganizedFrame organizedRender(const AnalyticScene& scene, const PinholeCamera& 
   return f;
 }
 
+// A diagnostics entry of the plugin as a number (a failure if it has none).
+std::size_t diagnosticCount(const ShapeEstimatorPlugin& plugin, const std::string& key) {
+  for (const auto& kv : plugin.diagnostics())
+    if (kv.first == key) return std::stoul(kv.second);
+  ADD_FAILURE() << "no diagnostics entry '" << key << "'";
+  return 0;
+}
+
 // `~shape_estimators` under nh, as the planner's launch file sets it: one estimator.
 void setOneEstimator(const ros::NodeHandle& nh, const std::string& name, const std::string& type) {
   XmlRpc::XmlRpcValue list;
@@ -347,12 +355,7 @@ TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
   nh.setParam("superellipsoids_topic", "superellipsoids");
   nh.setParam("camera_cloud_topic", "camera_points");
   plugin->initialize("camera", nh, "world");
-  auto count = [&](const std::string& key) {
-    for (const auto& kv : plugin->diagnostics())
-      if (kv.first == key) return std::stoul(kv.second);
-    ADD_FAILURE() << "no diagnostics entry '" << key << "'";
-    return 0ul;
-  };
+  auto count = [&](const std::string& key) { return diagnosticCount(*plugin, key); };
   const FruitOnALeaf s;
   tf2_ros::StaticTransformBroadcaster tf;
   std::vector<geometry_msgs::TransformStamped> poses;
@@ -422,12 +425,7 @@ TEST(Plugin, ADetectorsMaskReplacesTheRedTest) {
   nh.setParam("camera_cloud_topic", "masked_points");
   nh.setParam("camera_mask_topic", "masked_mask");
   plugin->initialize("masked", nh, "world");
-  auto count = [&](const std::string& key) {
-    for (const auto& kv : plugin->diagnostics())
-      if (kv.first == key) return std::stoul(kv.second);
-    ADD_FAILURE() << "no diagnostics entry '" << key << "'";
-    return 0ul;
-  };
+  auto count = [&](const std::string& key) { return diagnosticCount(*plugin, key); };
   const FruitOnALeaf s;
   tf2_ros::StaticTransformBroadcaster tf;
   geometry_msgs::TransformStamped pose = tf2::eigenToTransform(sim::cameraPose(s.cameras[0]));
