@@ -75,7 +75,9 @@ class FruitShapePipeline {
 
   FruitEstimate estimateCluster(const PointList& points, int id, const Track* previous);
   // The cluster as one fruit, or, if no superellipsoid fits it, split into parts that fit.
-  std::vector<std::pair<PointList, FruitEstimate>> estimateWithSplit(const PointList& points, int depth);
+  // `cells`: the points' occupied 1 cm cells if the caller has them.
+  std::vector<std::pair<PointList, FruitEstimate>> estimateWithSplit(const PointList& points, int depth,
+                                                                     const std::unordered_set<std::uint64_t>* cells = nullptr);
   int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
   // The previous fruit the changed cluster's points still fit (see refit_tolerance), or -1.
   int stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,

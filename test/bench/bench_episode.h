@@ -2,13 +2,17 @@
 // What the per-view benchmarks share: a seeded 120 s planner episode on scenario 2
 // (../shared/data; the procedural glasshouse when it is absent), paper profile, whose views
 // are handed to a callback, and quantiles of per-view times.
+#include <benchmark/benchmark.h>
+#include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/instrument/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/instrument/sim/fruit_truth.h>
 #include <fruit_shape_completion/instrument/sim/procedural_scene.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -54,6 +58,42 @@ inline double quantile(std::vector<double> v, double q) {
   const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
   std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
   return v[k];
+}
+
+// What a planner blocks on: `views` calls of insert(host, k), each timed, into a host in
+// background mode with the superellipsoid estimator (the fits run on its worker), back to back:
+// every view meets a running fit. insert returns "" or why it cannot go on. Counters: median_ms,
+// p95_ms, max_ms over all calls; fits run and fruits at the end, per episode.
+template <typename Insert>
+void insertViewLatency(benchmark::State& state, std::size_t views, Insert&& insert) {
+  if (views == 0) {
+    state.SkipWithError("the recorded episode has no views");
+    return;
+  }
+  std::vector<double> blocked_ms;
+  std::size_t fits = 0, fruits = 0;
+  for (auto _ : state) {
+    host::ShapeEstimatorHost host(nullptr, host::ShapeEstimatorHost::Updates::kBackground);
+    host.add(std::make_unique<host::SuperellipsoidEstimator>());
+    for (std::size_t k = 0; k < views; ++k) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const std::string error = insert(host, k);
+      if (!error.empty()) {
+        state.SkipWithError(error.c_str());
+        return;
+      }
+      blocked_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+    host.waitForUpdates(60.0);
+    fits += host.updateStatus(0).runs;
+    fruits = host.fruits(0).size();
+  }
+  state.counters["views"] = static_cast<double>(views);
+  state.counters["median_ms"] = quantile(blocked_ms, 0.5);
+  state.counters["p95_ms"] = quantile(blocked_ms, 0.95);
+  state.counters["max_ms"] = *std::max_element(blocked_ms.begin(), blocked_ms.end());
+  state.counters["fits"] = static_cast<double>(fits) / static_cast<double>(state.iterations());
+  state.counters["fruits"] = static_cast<double>(fruits);
 }
 
 }  // namespace bench

@@ -111,33 +111,13 @@ BENCHMARK(BM_PerViewUpdate)->Unit(benchmark::kMillisecond)->Iterations(3);
 // back to back (the worst case: each view meets a running fit). Counters over all views.
 static void BM_InsertViewLatencyCameraFrame(benchmark::State& state) {
   const Recording& rec = recording();
-  if (rec.views.empty()) {
-    state.SkipWithError("the recorded episode has no views");
-    return;
-  }
-  std::vector<double> blocked_ms;
-  std::size_t fits = 0, fruits = 0;
   const PointList none;
-  for (auto _ : state) {
-    host::ShapeEstimatorHost host(nullptr, host::ShapeEstimatorHost::Updates::kBackground);
-    host.add(std::make_unique<host::SuperellipsoidEstimator>());
-    for (const auto& v : rec.views) {
-      host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
-      view.camera_frame = &v.frame;
-      const auto t0 = std::chrono::steady_clock::now();
-      host.onView(view);
-      blocked_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    }
-    host.waitForUpdates(60.0);
-    fits += host.updateStatus(0).runs;
-    fruits = host.fruits(0).size();
-  }
-  state.counters["views"] = static_cast<double>(rec.views.size());
-  state.counters["median_ms"] = bench::quantile(blocked_ms, 0.5);
-  state.counters["p95_ms"] = bench::quantile(blocked_ms, 0.95);
-  state.counters["max_ms"] = *std::max_element(blocked_ms.begin(), blocked_ms.end());
-  state.counters["fits"] = static_cast<double>(fits) / static_cast<double>(state.iterations());
-  state.counters["fruits"] = static_cast<double>(fruits);
+  bench::insertViewLatency(state, rec.views.size(), [&](host::ShapeEstimatorHost& host, std::size_t k) {
+    host::ViewData view{none, none, rec.views[k].pose, 0.0, host::ViewSource::kCameraFrame};
+    view.camera_frame = &rec.views[k].frame;
+    host.onView(view);
+    return std::string();
+  });
   state.SetLabel(rec.scene);
 }
 BENCHMARK(BM_InsertViewLatencyCameraFrame)->Name("BM_InsertViewLatency/camera_frame_640x480")

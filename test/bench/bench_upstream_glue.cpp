@@ -91,36 +91,14 @@ BENCHMARK(BM_PerViewUpdateUpstreamGlue)->Unit(benchmark::kMillisecond)->Iteratio
 // back to back. Counters over all views.
 static void BM_InsertViewLatencyRoiCloud(benchmark::State& state) {
   const auto& messages = roiMessages();
-  if (messages.empty()) {
-    state.SkipWithError("the recorded episode has no views");
-    return;
-  }
-  std::vector<double> blocked_ms;
-  std::size_t fits = 0, fruits = 0;
-  for (auto _ : state) {
-    host::ShapeEstimatorHost host(nullptr, host::ShapeEstimatorHost::Updates::kBackground);
-    host.add(std::make_unique<host::SuperellipsoidEstimator>());
-    for (const auto& m : messages) {
-      const auto t0 = std::chrono::steady_clock::now();
-      ros_io::RoiView view;
-      std::string error;
-      if (!ros_io::toRoiView(m.cloud, m.roi_indices, m.transform, "world", &view, &error)) {
-        state.SkipWithError(error.c_str());
-        return;
-      }
+  bench::insertViewLatency(state, messages.size(), [&](host::ShapeEstimatorHost& host, std::size_t k) {
+    const RoiMessage& m = messages[k];
+    ros_io::RoiView view;
+    std::string error;
+    if (ros_io::toRoiView(m.cloud, m.roi_indices, m.transform, "world", &view, &error))
       host.onView({view.fruit, view.all, view.sensor_pose, 0.0, host::ViewSource::kRoiCloud});
-      blocked_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    }
-    host.waitForUpdates(60.0);
-    fits += host.updateStatus(0).runs;
-    fruits = host.fruits(0).size();
-  }
-  state.counters["views"] = static_cast<double>(messages.size());
-  state.counters["median_ms"] = bench::quantile(blocked_ms, 0.5);
-  state.counters["p95_ms"] = bench::quantile(blocked_ms, 0.95);
-  state.counters["max_ms"] = *std::max_element(blocked_ms.begin(), blocked_ms.end());
-  state.counters["fits"] = static_cast<double>(fits) / static_cast<double>(state.iterations());
-  state.counters["fruits"] = static_cast<double>(fruits);
+    return error;
+  });
 }
 BENCHMARK(BM_InsertViewLatencyRoiCloud)->Name("BM_InsertViewLatency/pointcloud_with_roi_1cm")
     ->Unit(benchmark::kMillisecond)->Iterations(3);

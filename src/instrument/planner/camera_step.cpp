@@ -18,8 +18,6 @@ CameraView captureView(const sim::RgbdRenderer& renderer, const PinholeCamera& c
   v.frame = renderer.render(camera, noise, p.render_threads);
   v.mask = sim::redMask(v.frame.rgb, v.frame.width, v.frame.height, red_test);
   v.pose = sim::cameraPose(camera);
-  // The ideal profile's HSV test stands in for an external detector's mask (viewData's caller
-  // passes it); the paper profile leaves the red test to the product's input stage.
   switch (p.input) {
     case PlannerParams::Input::kCamera:
       v.organized = sim::organizedFrame(v.frame);
@@ -40,9 +38,12 @@ CameraView captureView(const sim::RgbdRenderer& renderer, const PinholeCamera& c
   return v;
 }
 
-ViewData CameraView::viewData(double time) const {
+ViewData CameraView::viewData(double time, bool detector_mask) const {
   ViewData given{fruit_points, all_points, pose, time, source};
-  if (source == ViewSource::kCameraFrame) given.camera_frame = &organized;
+  if (source == ViewSource::kCameraFrame) {
+    given.camera_frame = &organized;
+    if (detector_mask) given.fruit_mask = &mask;
+  }
   return given;
 }
 

@@ -20,8 +20,9 @@ struct CameraView {
   PointList fruit_points, all_points;
   ViewSource source = ViewSource::kCameraFrame;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  // What the estimators get; refers to this view's members.
-  ViewData viewData(double time) const;
+  // What the estimators get; refers to this view's members. With `detector_mask` a camera
+  // frame carries `mask` in place of the product's red test (an external detector's mask).
+  ViewData viewData(double time, bool detector_mask) const;
 };
 
 // View number `view` (it seeds the depth noise) from `camera`.

@@ -106,8 +106,9 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       const sim::RgbdFrame& frame = captured.frame;
       const std::vector<std::uint8_t>& mask = captured.mask;
       countMask(captured, red_fruit_material, &result);
-      ViewData given = captured.viewData(t);
-      if (given.source == ViewSource::kCameraFrame && !p.upstream_red_test) given.fruit_mask = &mask;
+      // The ideal profile's HSV test stands in for an external detector's mask; the paper
+      // profile leaves the red test to the product's input stage.
+      const ViewData given = captured.viewData(t, !p.upstream_red_test);
       for (std::size_t px = 0; px < mask.size(); ++px) {
         seen_points += std::isfinite(frame.depth[px]) ? 1 : 0;
         seen_fruit += mask[px];

@@ -47,6 +47,22 @@ std::unordered_set<std::uint64_t> occupiedCells(const PointList& points) {
   return cells;
 }
 
+// The cluster's points and what they alone say: their count, centroid and bounding-box volume.
+void describeCluster(const PointList& points, FruitEstimate* est) {
+  est->n_points = static_cast<int>(points.size());
+  est->points = points;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+    sum += p;
+  }
+  est->points_centroid = sum / std::max<size_t>(1, points.size());
+  est->bbox_volume = points.empty() ? 0.0 : (hi - lo).prod();
+}
+
 }  // namespace
 
 void PipelineParams::validate() const {
@@ -81,19 +97,8 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
                                                   const Track* previous) {
   FruitEstimate est;
   est.id = id;
-  est.n_points = static_cast<int>(points.size());
-  est.points = points;
   est.refitted = true;
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::Vector3d hi = -lo;
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const auto& p : points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-    sum += p;
-  }
-  est.points_centroid = sum / std::max<size_t>(1, points.size());
-  est.bbox_volume = points.empty() ? 0.0 : (hi - lo).prod();
+  describeCluster(points, &est);
   est.shape.t = est.points_centroid;
 
   const SurfaceNormals normals = estimateNormals(points, params_.normals, est.points_centroid);
@@ -160,9 +165,9 @@ int FruitShapePipeline::stillExplainedBy(const PointList& points, const std::uno
   return rms <= (1.0 + params_.refit_tolerance) * std::max(t.estimate.rms, 0.001) ? only : -1;
 }
 
-std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWithSplit(const PointList& points,
-                                                                                        int depth) {
-  const int warm = bestOverlap(occupiedCells(points));
+std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWithSplit(
+    const PointList& points, int depth, const std::unordered_set<std::uint64_t>* cells) {
+  const int warm = bestOverlap(cells ? *cells : occupiedCells(points));
   FruitEstimate whole = estimateCluster(points, -1, warm >= 0 ? &tracks_[warm] : nullptr);
   ++stats_.fitted;
   std::vector<std::pair<PointList, FruitEstimate>> out;
@@ -285,17 +290,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       reused[kept] = 1;
       Track t = tracks_[kept];
       FruitEstimate& e = t.estimate;
-      e.points = pts;
-      e.n_points = static_cast<int>(pts.size());
-      Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      for (const auto& p : pts) {
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-        sum += p;
-      }
-      e.points_centroid = sum / static_cast<double>(pts.size());
-      e.bbox_volume = (hi - lo).prod();
+      describeCluster(pts, &e);
       if (params_.missing.samples > 0) e.missing_surface = predictMissingSurface(e.shape, pts, params_.missing);
       e.refitted = false;
       t.cluster_signature = signature;
@@ -305,13 +300,13 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       ++stats_.kept;
       continue;
     }
-    for (auto& part : estimateWithSplit(pts, 0)) {
+    for (auto& part : estimateWithSplit(pts, 0, &cells)) {
       Track t;
       t.estimate = std::move(part.second);
       t.cluster_signature = signature;
       t.cluster_points = pts.size();
       t.fitted_points = part.first.size();
-      t.cells = occupiedCells(part.first);
+      t.cells = part.first.size() == pts.size() ? cells : occupiedCells(part.first);  // unsplit: the cluster's own cells
       pending.push_back(std::move(t));
     }
   }
