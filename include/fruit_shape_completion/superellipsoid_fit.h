@@ -58,4 +58,9 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
 void evaluateRadialResiduals(const PointList& points, const Superellipsoid& shape,
                              Eigen::VectorXd* residuals, Eigen::MatrixXd* J);
 
+// The radial distances of many points at once (vectorised; Superellipsoid::radialDistance is the
+// one-point form), and their RMS (0 for no points).
+Eigen::VectorXd radialDistances(const PointList& points, const Superellipsoid& shape);
+double rmsRadialDistance(const PointList& points, const Superellipsoid& shape);
+
 }  // namespace fruit_shape_completion

@@ -130,6 +130,39 @@ TEST(SuperellipsoidFit, StaysWithinTheBounds) {
   EXPECT_NE(fit.reason.find("RMS"), std::string::npos) << fit.reason;
 }
 
+// Peppers are often rounder than e2 = max_e allows: the exponent then sits on its bound. The
+// fit holds it there and converges on the other parameters instead of crawling along the bound
+// (Ceres projects each step back into the box), so a warm refit stays short.
+TEST(SuperellipsoidFit, AnExponentOnItsBoundIsHeldAndTheRestConverges) {
+  Superellipsoid truth;
+  truth.a = 0.035;
+  truth.b = 0.04;
+  truth.c = 0.045;
+  truth.e1 = 0.7;
+  truth.e2 = 1.0;  // beyond max_e = 0.9
+  truth.t = Eigen::Vector3d(0.2, 0.1, 0.6);
+  truth.rpy = Eigen::Vector3d(0.3, -0.2, 0.5);
+  ScanParams scan;
+  scan.visible_fraction = 0.6;
+  scan.view_dir = Eigen::Vector3d(1, 0.2, 0.3);
+  const PointList pts = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+  const FitParams params;
+  const FitResult cold = fitWithPrior(pts, params);
+  ASSERT_TRUE(cold.accepted) << cold.reason;
+  EXPECT_DOUBLE_EQ(cold.shape.e2, params.max_e);
+  EXPECT_LT(cold.rms, 0.002);
+  EXPECT_NEAR(cold.shape.volume(), truth.volume(), 0.05 * truth.volume());
+  // A refit from a slightly moved start converges again on the bound, in a few iterations.
+  Superellipsoid moved = cold.shape;
+  moved.t += Eigen::Vector3d(0.003, -0.002, 0.002);
+  moved.a *= 1.1;
+  const FitResult warm = fitSuperellipsoid(pts, cold.shape.t, params, &moved);
+  ASSERT_TRUE(warm.accepted) << warm.reason;
+  EXPECT_DOUBLE_EQ(warm.shape.e2, params.max_e);
+  EXPECT_NEAR(warm.rms, cold.rms, 0.05 * cold.rms);
+  EXPECT_LE(warm.iterations, 20);
+}
+
 TEST(SuperellipsoidFit, NotConvergedIsRejectedWithReason) {
   std::mt19937 rng(8);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d::Zero());

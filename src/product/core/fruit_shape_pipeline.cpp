@@ -159,9 +159,7 @@ int FruitShapePipeline::stillExplainedBy(const PointList& points, const std::uno
   if (!t.estimate.accepted || static_cast<double>(points.size()) >
                                   (1.0 + params_.refit_tolerance) * static_cast<double>(t.fitted_points))
     return -1;
-  double sum = 0.0;
-  for (const auto& p : points) sum += std::pow(t.estimate.shape.radialDistance(p), 2);
-  const double rms = std::sqrt(sum / static_cast<double>(points.size()));
+  const double rms = rmsRadialDistance(points, t.estimate.shape);
   return rms <= (1.0 + params_.refit_tolerance) * std::max(t.estimate.rms, 0.001) ? only : -1;
 }
 
@@ -221,8 +219,9 @@ std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWit
                             estimateCluster(part[1], -1, previousOf(part[1]))};
   stats_.fitted += 2;
   if (first[0].converged && first[1].converged) {
-    for (std::size_t i = 0; i < points.size(); ++i)
-      label[i] = first[1].shape.radialDistance(points[i]) < first[0].shape.radialDistance(points[i]);
+    const Eigen::VectorXd d0 = radialDistances(points, first[0].shape);
+    const Eigen::VectorXd d1 = radialDistances(points, first[1].shape);
+    for (std::size_t i = 0; i < points.size(); ++i) label[i] = d1[i] < d0[i];
     if (!partition(part)) {
       out.emplace_back(points, whole);
       return out;

@@ -146,7 +146,7 @@ void evaluateRadialResiduals(const PointList& points, const Superellipsoid& se,
   const int n = static_cast<int>(points.size());
   Eigen::VectorXd r(n);
   using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  RowMajor j0(n, 5), j1(n, 3), j2(n, 3);
+  RowMajor j0(J ? n : 0, 5), j1(J ? n : 0, 3), j2(J ? n : 0, 3);
   double* jac[3] = {j0.data(), j1.data(), j2.data()};
   cost.Evaluate(params, r.data(), J ? jac : nullptr);
   if (residuals) *residuals = r;
@@ -154,6 +154,19 @@ void evaluateRadialResiduals(const PointList& points, const Superellipsoid& se,
     J->resize(n, 11);
     *J << j0, j1, j2;
   }
+}
+
+Eigen::VectorXd radialDistances(const PointList& points, const Superellipsoid& shape) {
+  Eigen::VectorXd r;
+  evaluateRadialResiduals(points, shape, &r, nullptr);
+  return r.cwiseAbs();
+}
+
+double rmsRadialDistance(const PointList& points, const Superellipsoid& shape) {
+  if (points.empty()) return 0.0;
+  Eigen::VectorXd r;
+  evaluateRadialResiduals(points, shape, &r, nullptr);
+  return std::sqrt(r.squaredNorm() / static_cast<double>(points.size()));
 }
 
 void FitParams::validate() const {
@@ -186,6 +199,24 @@ struct Solution {
   std::string message;
 };
 
+// Ceres keeps a bounded coordinate inside its box by projecting each step. Once an exponent or
+// an axis presses against its bound, the steps of the other parameters, computed as if it could
+// move on, are mostly wasted and LM crawls for tens of iterations. So a solve that has not
+// converged after a few iterations holds the shape coordinates that sit on a bound there (an
+// active set) and goes on; at the end it lets them go again only if the cost would fall by
+// moving one back inside.
+constexpr int kProbeIterations = 8;
+
+std::vector<int> coordinatesOnBounds(const double shape[5], const FitParams& params) {
+  std::vector<int> on;
+  for (int k = 0; k < 5; ++k) {
+    const double lo = k < 3 ? params.min_axis : params.min_e;
+    const double hi = k < 3 ? params.max_axis : params.max_e;
+    if (shape[k] <= lo || shape[k] >= hi) on.push_back(k);
+  }
+  return on;
+}
+
 // One Levenberg-Marquardt run from `sol`'s parameters, which it overwrites.
 void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior,
            const FitParams& params, Solution& sol) {
@@ -208,17 +239,55 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
   options.minimizer_type = ceres::TRUST_REGION;
   options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = params.max_iterations;
   options.function_tolerance = params.function_tolerance;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  sol.cost = summary.final_cost;
-  sol.converged = summary.termination_type == ceres::CONVERGENCE;
-  sol.iterations = std::max(0, static_cast<int>(summary.iterations.size()) - 1);
-  sol.message = summary.message;
+  int budget = params.max_iterations;
+  sol.iterations = 0;
+  auto run = [&](int max_iterations) {
+    options.max_num_iterations = std::max(1, max_iterations);
+    ceres::Solver::Summary summary;
+    ceres::Solve(options, &problem, &summary);
+    const int done = std::max(0, static_cast<int>(summary.iterations.size()) - 1);
+    sol.iterations += done;
+    budget -= std::max(1, done);
+    sol.cost = summary.final_cost;
+    sol.converged = summary.termination_type == ceres::CONVERGENCE;
+    sol.message = summary.message;
+  };
+  // Holds `held` (shape coordinates) constant; none: all free again.
+  auto hold = [&](const std::vector<int>& held) {
+    problem.SetParameterBlockVariable(sol.shape);
+    problem.SetManifold(sol.shape, nullptr);
+    if (held.size() == 5)
+      problem.SetParameterBlockConstant(sol.shape);
+    else if (!held.empty())
+      problem.SetManifold(sol.shape, new ceres::SubsetManifold(5, held));
+  };
+
+  run(std::min(budget, kProbeIterations));
+  const std::vector<int> held = coordinatesOnBounds(sol.shape, params);
+  if (sol.converged || budget <= 0 || held.empty()) {
+    if (!sol.converged && budget > 0) run(budget);
+    return;
+  }
+  hold(held);
+  run(budget);
+  if (!sol.converged) return;
+  // Let the held coordinates go if the cost falls by moving one of them back inside its box.
+  hold({});
+  std::vector<double> gradient;
+  double cost = 0.0;
+  ceres::Problem::EvaluateOptions eval;
+  eval.parameter_blocks = {sol.shape, sol.t, sol.rpy};
+  problem.Evaluate(eval, &cost, nullptr, &gradient, nullptr);
+  bool inward = false;
+  for (int k : held) {
+    const double hi = k < 3 ? params.max_axis : params.max_e;
+    inward = inward || (sol.shape[k] >= hi ? gradient[k] > 0.0 : gradient[k] < 0.0);
+  }
+  if (inward && budget > 0) run(budget);
 }
 
 }  // namespace
@@ -309,9 +378,7 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
   se.rpy = Eigen::Vector3d(wrapAngle(best->rpy[0]), wrapAngle(best->rpy[1]), wrapAngle(best->rpy[2]));
   result.converged = best->converged;
 
-  double sum = 0.0;
-  for (const auto& p : finite) sum += std::pow(se.radialDistance(p), 2);
-  result.rms = std::sqrt(sum / n);
+  result.rms = rmsRadialDistance(finite, se);
 
   if (!se.isFinite() || !std::isfinite(result.rms)) return finish("fit produced non-finite values");
   if (!result.converged) {
