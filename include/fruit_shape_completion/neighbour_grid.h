@@ -48,21 +48,29 @@ class NeighbourGrid {
   // relations (clustering, neighbour statistics).
   template <typename Fn>
   void forEachPair(double radius, Fn&& fn) const {
+    forEachPairByPosition(radius, [&](int k, int m, double d2) {
+      fn(order_[static_cast<std::size_t>(k)], order_[static_cast<std::size_t>(m)], d2);
+    });
+  }
+  // The same with the points' positions in the grid's cell order (pointAt, indexAt): a caller
+  // that keeps per-point state in that order touches memory close together.
+  template <typename Fn>
+  void forEachPairByPosition(double radius, Fn&& fn) const {
     const double r2 = radius * radius;
     Ranges ranges;
     for (const auto& cell : cell_list_) {
       const int n = forwardRanges(cell.first, &ranges);
       for (int k = cell.second.first; k < cell.second.second; ++k) {
         const Point& p = sorted_[static_cast<std::size_t>(k)];
-        const int i = order_[static_cast<std::size_t>(k)];
-        for (int m = k + 1; m < cell.second.second; ++m)
-          visitIfWithin(p, i, m, r2, fn);
+        for (int m = k + 1; m < cell.second.second; ++m) visitIfWithin(p, k, m, r2, fn);
         for (int r = 0; r < n; ++r)
-          for (int m = ranges[r].first; m < ranges[r].second; ++m)
-            visitIfWithin(p, i, m, r2, fn);
+          for (int m = ranges[r].first; m < ranges[r].second; ++m) visitIfWithin(p, k, m, r2, fn);
       }
     }
   }
+  std::size_t size() const { return sorted_.size(); }
+  const Point& pointAt(std::size_t position) const { return sorted_[position]; }
+  int indexAt(std::size_t position) const { return order_[position]; }
 
   // True if a point of the grid lies within `radius` (<= the cell size) of q.
   bool anyWithin(const Point& q, double radius) const;
@@ -84,9 +92,9 @@ class NeighbourGrid {
  private:
   using Ranges = std::array<std::pair<int, int>, 27>;
   template <typename Fn>
-  void visitIfWithin(const Point& p, int i, int m, double r2, Fn& fn) const {
+  void visitIfWithin(const Point& p, int k, int m, double r2, Fn& fn) const {
     const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
-    if (d2 <= r2) fn(i, order_[static_cast<std::size_t>(m)], d2);
+    if (d2 <= r2) fn(k, m, d2);
   }
   // The ranges of the occupied cells among `cell` and its 26 neighbours; returns their count.
   int neighbourRanges(const GridCell& cell, Ranges* ranges) const;

@@ -31,11 +31,17 @@ struct SurfaceNormals {
 struct NeighbourMoments {
   int count = 0;
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  double outer[6] = {0, 0, 0, 0, 0, 0};  // the symmetric second moments: xx xy xz yy yz zz
   void add(const Eigen::Vector3d& offset) {
+    const double x = offset.x(), y = offset.y(), z = offset.z();
     ++count;
     sum += offset;
-    outer.noalias() += offset * offset.transpose();
+    outer[0] += x * x;
+    outer[1] += x * y;
+    outer[2] += x * z;
+    outer[3] += y * y;
+    outer[4] += y * z;
+    outer[5] += z * z;
   }
   // The unit normal, its sign arbitrary; NaN if the neighbourhood is too small or a line.
   Eigen::Vector3d normal(const NormalParams& params) const;

@@ -13,7 +13,9 @@ Eigen::Vector3d NeighbourMoments::normal(const NormalParams& params) const {
   if (count < params.min_neighbours) return none;
   const Eigen::Vector3d mean = sum / count;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-  es.computeDirect(outer - count * mean * mean.transpose());
+  Eigen::Matrix3d second;
+  second << outer[0], outer[1], outer[2], outer[1], outer[3], outer[4], outer[2], outer[4], outer[5];
+  es.computeDirect(second - count * mean * mean.transpose());
   const Eigen::Vector3d ev = es.eigenvalues();  // ascending
   if (!(ev(2) > 0.0) || ev(1) < params.min_planarity * ev(2)) return none;
   const Eigen::Vector3d normal = es.eigenvectors().col(0);

@@ -121,32 +121,33 @@ void analyseNeighbourhoods(const PointList& ends, const TsdfIntegratorParams& pa
   const double outlier_r2 = params.outliers.search_radius * params.outliers.search_radius;
   const double normal_r2 = np.radius * np.radius;
   const double radius = std::max(find_outliers ? params.outliers.search_radius : 0.0, find_normals ? np.radius : 0.0);
-  NearestDistances nearest(find_outliers ? ends.size() : 0, params.outliers);
-  std::vector<NeighbourMoments> moments(find_normals ? ends.size() : 0);
-  for (NeighbourMoments& m : moments) m.add(Eigen::Vector3d::Zero());  // the point itself
+  // Per-point state is kept in the grid's cell order, where the two points of a close pair
+  // usually lie near each other in memory.
   const NeighbourGrid grid(ends, radius);
-  grid.forEachPair(radius, [&](int i, int j, double dd) {
+  const std::size_t n = grid.size();
+  NearestDistances nearest(find_outliers ? n : 0, params.outliers);
+  std::vector<NeighbourMoments> moments(find_normals ? n : 0);
+  for (NeighbourMoments& m : moments) m.add(Eigen::Vector3d::Zero());  // the point itself
+  grid.forEachPairByPosition(radius, [&](int i, int j, double dd) {
     const auto a = static_cast<std::size_t>(i), b = static_cast<std::size_t>(j);
     if (find_outliers && dd <= outlier_r2) {
       nearest.add(a, dd);
       nearest.add(b, dd);
     }
     if (find_normals && dd <= normal_r2) {
-      const Eigen::Vector3d offset = ends[b] - ends[a];
+      const Eigen::Vector3d offset = grid.pointAt(b) - grid.pointAt(a);
       moments[a].add(offset);
       moments[b].add(-offset);
     }
   });
   if (find_outliers) {
     std::vector<double> statistic(ends.size(), std::numeric_limits<double>::quiet_NaN());
-    for (std::size_t i = 0; i < ends.size(); ++i)
-      if (ends[i].allFinite()) statistic[i] = nearest.meanDistance(i);
+    for (std::size_t k = 0; k < n; ++k) statistic[static_cast<std::size_t>(grid.indexAt(k))] = nearest.meanDistance(k);
     *outlier = flagOutliers(statistic, params.outliers);
   }
   if (find_normals) {
     normals->assign(ends.size(), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
-    for (std::size_t i = 0; i < ends.size(); ++i)
-      if (ends[i].allFinite()) (*normals)[i] = moments[i].normal(np);
+    for (std::size_t k = 0; k < n; ++k) (*normals)[static_cast<std::size_t>(grid.indexAt(k))] = moments[k].normal(np);
   }
 }
 
