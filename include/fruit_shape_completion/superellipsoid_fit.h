@@ -25,7 +25,7 @@ struct FitParams {
   // The final solve runs on at most this many of the points, evenly strided (the residual and
   // the acceptance use all of them): a fruit seen all round gives thousands of surface points
   // that add cost, not information. 0: all points.
-  int max_points = 600;
+  int max_points = 300;
   // Also start with the shape's z axis along world x and y, keep the lowest cost. Guards
   // against the local minima of a single start at rpy = 0.
   bool extra_starts = true;
