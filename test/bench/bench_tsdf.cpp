@@ -24,8 +24,8 @@ AnalyticScene fruitCluster(const Eigen::Vector3d& center, int n, unsigned seed) 
   while (static_cast<int>(scene.shapes.size()) < n) {
     Superellipsoid s;
     s.a = r(rng); s.b = r(rng); s.c = r(rng); s.e1 = e(rng); s.e2 = e(rng);
-    s.rpy = Eigen::Vector3d(u(rng), u(rng), u(rng));
-    s.t = center + Eigen::Vector3d(0.12 * u(rng), 0.12 * u(rng), 0.12 * u(rng));
+    s.rpy = Eigen::Vector3d{u(rng), u(rng), u(rng)};
+    s.t = center + Eigen::Vector3d{0.12 * u(rng), 0.12 * u(rng), 0.12 * u(rng)};
     bool overlaps = false;
     for (const auto& o : scene.shapes) overlaps = overlaps || (o.t - s.t).norm() < 0.11;
     if (!overlaps) scene.shapes.push_back(s);
@@ -237,7 +237,7 @@ static void BM_ClusteringHostile(benchmark::State& state) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   if (state.range(0) == 0) points.assign(100000, Eigen::Vector3d(0.3, 0.2, 0.1));
   else
-    for (int i = 0; i < 1000000; ++i) points.emplace_back(u(rng), u(rng), u(rng));
+    for (int i = 0; i < 1000000; ++i) points.push_back(Eigen::Vector3d{u(rng), u(rng), u(rng)});
   ClusteringParams params;
   params.min_size = 1;
   params.max_size = 2000000;

@@ -32,7 +32,7 @@ TEST(StatisticalOutlierFilter, FlagsStraysAsTheDefinitionSays) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-0.12, 0.12);
   while (pts.size() < on_sphere + 40) {
-    const Eigen::Vector3d p = Eigen::Vector3d(0.3, 0.1, 0.5) + Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const Eigen::Vector3d p = Eigen::Vector3d(0.3, 0.1, 0.5) + Eigen::Vector3d{u(rng), u(rng), u(rng)};
     if (std::abs((p - Eigen::Vector3d(0.3, 0.1, 0.5)).norm() - 0.04) > 0.03) pts.push_back(p);
   }
   pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);

@@ -28,7 +28,7 @@ Score fitAndScore(const SyntheticFruit& fruit, double seen, unsigned seed) {
   std::uniform_real_distribution<double> u(-1, 1);
   ScanParams scan;
   scan.visible_fraction = seen;
-  scan.view_dir = Eigen::Vector3d(u(rng), u(rng), u(rng));
+  scan.view_dir = Eigen::Vector3d{u(rng), u(rng), u(rng)};
   scan.seed = seed;
   const PointList pts = scanFruit(fruit, scan);
   const FitResult fit = fitWithPrior(pts);
@@ -91,23 +91,26 @@ TEST(SuperellipsoidFit, HalfSeenFruits) { checkRandomFruits(0.5, 0.93, 0.004, 0.
 TEST(SuperellipsoidFit, QuarterSeenFruitsReported) { checkRandomFruits(0.25, 0.75, 0.010, 0.2, 3000); }
 
 TEST(SuperellipsoidFit, LobedPepperShapesReported) {
-  // Not superellipsoids: lobes, taper and a stem dent. Reported, with a loose bound.
+  // Not superellipsoids: lobes, taper and a stem dent. Reported, with loose bounds: seen from
+  // one side, some lobed peppers lose a fifth of their volume.
   for (double seen : {1.0, 0.5}) {
     double acc_sum = 0, err_sum = 0;
     const int n = 8;
     for (int i = 0; i < n; ++i) {
       std::mt19937 rng(500 + i);
       std::uniform_real_distribution<double> r(0.035, 0.05), h(0.035, 0.06);
-      const SyntheticFruit pepper = SyntheticFruit::pepper(
-          r(rng), h(rng), 3 + i % 2, 0.08, 0.25, Eigen::Vector3d(0, 0, 1), randomRotation(rng));
+      const double radius = r(rng), height = h(rng);  // drawn in order, whatever the compiler
+      const SyntheticFruit pepper = SyntheticFruit::pepper(radius, height, 3 + i % 2, 0.08, 0.25,
+                                                           Eigen::Vector3d(0, 0, 1), randomRotation(rng));
       const Score s = fitAndScore(pepper, seen, 600 + i);
       EXPECT_TRUE(s.accepted);
-      EXPECT_GE(s.accuracy, 0.85) << "pepper " << i << " seen " << seen;
+      EXPECT_GE(s.accuracy, seen == 1.0 ? 0.9 : 0.75) << "pepper " << i << " seen " << seen;
       acc_sum += s.accuracy;
       err_sum += s.center_error;
     }
     std::printf("[ report   ] pepper shapes, seen %.2f: mean volume accuracy %.4f, mean centre "
                 "error %.2f mm over %d\n", seen, acc_sum / n, err_sum / n * 1000, n);
+    EXPECT_GE(acc_sum / n, seen == 1.0 ? 0.97 : 0.85);
   }
 }
 
@@ -232,7 +235,7 @@ TEST(SuperellipsoidFit, AnalyticJacobianMatchesFiniteDifferences) {
   Superellipsoid se = randomSuperellipsoid(rng, Eigen::Vector3d(0.1, 0.2, 0.3));
   PointList pts;
   std::uniform_real_distribution<double> u(-0.08, 0.08);
-  for (int i = 0; i < 50; ++i) pts.push_back(se.t + Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  for (int i = 0; i < 50; ++i) pts.push_back(se.t + Eigen::Vector3d{u(rng), u(rng), u(rng)});
   Eigen::VectorXd r;
   Eigen::MatrixXd J;
   evaluateRadialResiduals(pts, se, &r, &J);

@@ -89,8 +89,8 @@ TEST(HsiRedTest, AgreesWithPclsPackedHsiComparisonAsPointcloudRoiSetsItUp) {
         cloud->push_back(p);
       }
   for (int i = 0; i < 100000; ++i) {  // and near the red band's borders
-    pcl::PointXYZRGB p(static_cast<std::uint8_t>(byte(rng) / 2 + 128), static_cast<std::uint8_t>(byte(rng) / 3),
-                       static_cast<std::uint8_t>(byte(rng) / 3));
+    pcl::PointXYZRGB p{static_cast<std::uint8_t>(byte(rng) / 2 + 128), static_cast<std::uint8_t>(byte(rng) / 3),
+                       static_cast<std::uint8_t>(byte(rng) / 3)};
     p.x = p.y = p.z = 1.0f;
     cloud->push_back(p);
   }

@@ -231,7 +231,7 @@ TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) 
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int i = 0; i < 600; ++i)
-    cloud.emplace_back(0.128 + 0.04 * u(rng), -0.03 + 0.06 * u(rng), 0.47 + 0.06 * u(rng));
+    cloud.push_back(Eigen::Vector3d{0.128 + 0.04 * u(rng), -0.03 + 0.06 * u(rng), 0.47 + 0.06 * u(rng)});
   FruitShapePipeline pipeline;
   const auto& fruits = pipeline.update(cloud);
   int accepted = 0;

@@ -764,7 +764,8 @@ TEST(ViewpointPlanner, AFitsResultsReachThePlannerAfterTheFitNotBeforeAndNotNeve
   int red = 0;
   for (const auto& f : sim::computeFruitTruth(s.scene)) red += f.color == "red";
   EXPECT_GE(r.views.back().se_true.ma50.fruits, red / 2);
-  EXPECT_EQ(static_cast<int>(r.final_fruits.size()), r.views.back().se_true.all.fruits);
+  // The last view is scored on the fruits the planner had then (an estimate may match no fruit).
+  EXPECT_GE(static_cast<int>(r.final_fruits.size()), r.views.back().se_true.all.fruits);
 }
 
 // The upstream planner's threads against a background host: four spinner threads inserting

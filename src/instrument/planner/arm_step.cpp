@@ -17,7 +17,7 @@ bool placeArmAtStart(const sim::Scene& scene, const sim::RobotArm& arm, const si
   std::normal_distribution<double> g(0.0, 1.0);
   bool placed = false;
   for (int i = 0; i < 2000 && !placed; ++i) {
-    const Eigen::Vector3d c = i == 0 ? *pos : *pos + (0.02 + 0.3 * i / 2000.0) * Eigen::Vector3d(g(rng), g(rng), g(rng));
+    const Eigen::Vector3d c = i == 0 ? *pos : *pos + (0.02 + 0.3 * i / 2000.0) * Eigen::Vector3d{g(rng), g(rng), g(rng)};
     if ((c - look).norm() < 0.05 || !scene.workspace.contains(c)) continue;
     placed = arm.reach(PinholeCamera::lookingAt(c, look), home, motion, arm.plants(), state) ==
              sim::RobotArm::Reach::kReached;

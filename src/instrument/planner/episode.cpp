@@ -196,7 +196,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       if (!targets.empty()) {
         for (int i = 0; !enough(i); ++i) {
           const Eigen::Vector3d& target = targets[static_cast<std::size_t>(unit(rng) * targets.size()) % targets.size()];
-          Eigen::Vector3d dir(g(rng), g(rng), g(rng));
+          Eigen::Vector3d dir{g(rng), g(rng), g(rng)};
           dir.normalize();
           const double dist = p.min_view_distance + unit(rng) * (p.max_view_distance - p.min_view_distance);
           tryCandidate(target + dist * dir, target, &interest);
@@ -214,7 +214,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
             if (tree.isNodeOccupied(*it)) seen.emplace_back(it.getX(), it.getY(), it.getZ());
         for (int i = 0; !enough(i); ++i) {
           const Eigen::Vector3d c = scene.workspace.box_min +
-                                    (scene.workspace.box_max - scene.workspace.box_min).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+                                    (scene.workspace.box_max - scene.workspace.box_min).cwiseProduct(Eigen::Vector3d{unit(rng), unit(rng), unit(rng)});
           Eigen::Vector3d target;
           if (p.explore_plants)
             target = scene.plants.empty() ? plants_center
@@ -223,7 +223,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           else if (!seen.empty())
             target = seen[static_cast<std::size_t>(unit(rng) * seen.size()) % seen.size()];
           else
-            target = c + Eigen::Vector3d(g(rng), g(rng), 0.3 * g(rng)).normalized();
+            target = c + Eigen::Vector3d{g(rng), g(rng), 0.3 * g(rng)}.normalized();
           tryCandidate(c, target, nullptr);
         }
         best_gain = 0.0;
@@ -246,7 +246,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           break;
         }
         // Stay, but turn to look elsewhere (if the arm can).
-        const Eigen::Vector3d turn = pos + Eigen::Vector3d(g(rng), g(rng), 0.2 * g(rng)).normalized();
+        const Eigen::Vector3d turn = pos + Eigen::Vector3d{g(rng), g(rng), 0.2 * g(rng)}.normalized();
         sim::ArmState turned;
         if (!arm) {
           look = turn;

@@ -131,11 +131,15 @@ PlantMesh makePlant(std::mt19937& rng, const ProceduralSceneParams& p) {
     // Pepper shape of a random volume in [min_volume, max_volume].
     const double target = p.min_volume + u(rng) * (p.max_volume - p.min_volume);
     const double r0 = 0.04, h0 = r0 * (0.8 + 0.5 * u(rng));
+    // Draws in named steps: the order in which a call's arguments are evaluated is up to the
+    // compiler, and a seeded scene must be the same from any compiler.
+    const double heading = 2 * M_PI * u(rng), lean = 0.5 * (u(rng) - 0.5);
     const Eigen::Matrix3d tilt =
-        (Eigen::AngleAxisd(2 * M_PI * u(rng), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.5 * (u(rng) - 0.5), Eigen::Vector3d::UnitX()))
+        (Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(lean, Eigen::Vector3d::UnitX()))
             .toRotationMatrix();
-    SyntheticFruit unit = SyntheticFruit::pepper(r0, h0, 3 + static_cast<int>(2 * u(rng)), 0.06 + 0.06 * u(rng),
-                                                 0.15 + 0.25 * u(rng), Eigen::Vector3d::Zero(), tilt);
+    const int lobes = 3 + static_cast<int>(2 * u(rng));
+    const double lobe_depth = 0.06 + 0.06 * u(rng), taper = 0.15 + 0.25 * u(rng);
+    SyntheticFruit unit = SyntheticFruit::pepper(r0, h0, lobes, lobe_depth, taper, Eigen::Vector3d::Zero(), tilt);
     const double scale = std::cbrt(target / unit.volume(20000));
     const double reach = scale * std::max(r0, h0) * 1.15;
     const double az = 2 * M_PI * u(rng);
@@ -174,7 +178,8 @@ PlantMesh makePlant(std::mt19937& rng, const ProceduralSceneParams& p) {
     for (double s = 0.0; s <= 1.0 && free; s += 0.1)
       for (const auto& f : fruits) free = free && (base + s * length * dir - f.c).norm() > f.r + 0.006 + 0.5 * width * std::sin(M_PI * s);
     if (!free) continue;
-    mesh.leaf(base, dir, side, length, width, 0.3 * u(rng), u(rng) < 0.5 ? kLeaf : kLeafLight);
+    const double curl = 0.3 * u(rng);
+    mesh.leaf(base, dir, side, length, width, curl, u(rng) < 0.5 ? kLeaf : kLeafLight);
     ++i;
   }
   return mesh;

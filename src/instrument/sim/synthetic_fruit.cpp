@@ -89,7 +89,7 @@ PointList scanFruit(const SyntheticFruit& fruit, const ScanParams& params) {
       if (!seen.insert(packCellKey(cell)).second) continue;
       q = (cell.cast<double>().array() + 0.5) * params.voxel;
     }
-    if (params.noise_sigma > 0.0) q += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    if (params.noise_sigma > 0.0) q += Eigen::Vector3d{noise(rng), noise(rng), noise(rng)};
     out.push_back(q);
   }
   return out;
@@ -97,7 +97,7 @@ PointList scanFruit(const SyntheticFruit& fruit, const ScanParams& params) {
 
 Eigen::Matrix3d randomRotation(std::mt19937& rng) {
   std::normal_distribution<double> g(0.0, 1.0);
-  Eigen::Quaterniond q(g(rng), g(rng), g(rng), g(rng));
+  Eigen::Quaterniond q{g(rng), g(rng), g(rng), g(rng)};  // braces: drawn left to right
   q.normalize();
   return q.toRotationMatrix();
 }

@@ -35,17 +35,18 @@ int main(int argc, char** argv) {
                                              randomSuperellipsoid(rng, nextCenter())),
                        seen});
   std::uniform_real_distribution<double> r(0.035, 0.05), h(0.035, 0.06);
-  for (double seen : {1.0, 0.5})
-    cases.push_back({"pepper", SyntheticFruit::pepper(r(rng), h(rng), 4, 0.08, 0.25,
-                                                      nextCenter(), randomRotation(rng)),
-                     seen});
+  for (double seen : {1.0, 0.5}) {
+    const double radius = r(rng), height = h(rng);
+    const Eigen::Vector3d center = nextCenter();
+    cases.push_back({"pepper", SyntheticFruit::pepper(radius, height, 4, 0.08, 0.25, center, randomRotation(rng)), seen});
+  }
 
   PointList cloud;
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (size_t i = 0; i < cases.size(); ++i) {
     ScanParams scan;
     scan.visible_fraction = cases[i].seen;
-    scan.view_dir = Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+    scan.view_dir = Eigen::Vector3d{unit(rng), unit(rng), unit(rng)};
     scan.seed = seed * 100 + static_cast<unsigned>(i);
     const PointList pts = scanFruit(cases[i].fruit, scan);
     cloud.insert(cloud.end(), pts.begin(), pts.end());

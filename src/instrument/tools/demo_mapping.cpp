@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
   std::uniform_real_distribution<double> u(-1, 1);
   auto reach = [](const Superellipsoid& s) { return std::sqrt(s.a * s.a + s.b * s.b + s.c * s.c); };
   while (scene.shapes.size() < 6) {  // fruits with at least 2 cm between their bounding spheres
-    const Eigen::Vector3d c = plant + Eigen::Vector3d(0.2 * u(rng), 0.06 * u(rng), 0.2 * u(rng));
+    const Eigen::Vector3d c = plant + Eigen::Vector3d{0.2 * u(rng), 0.06 * u(rng), 0.2 * u(rng)};
     const Superellipsoid fruit = randomSuperellipsoid(rng, c);
     bool ok = true;
     for (const auto& s : scene.shapes) ok = ok && (s.t - c).norm() > reach(s) + reach(fruit) + 0.02;
@@ -49,8 +49,8 @@ int main(int argc, char** argv) {
     leaf.c = 0.002;
     leaf.e1 = 0.9;
     leaf.e2 = 1.0;
-    leaf.t = plant + Eigen::Vector3d(0.18 * u(rng), -0.08 + 0.04 * u(rng), 0.18 * u(rng));
-    leaf.rpy = Eigen::Vector3d(M_PI / 2 + 0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng));
+    leaf.t = plant + Eigen::Vector3d{0.18 * u(rng), -0.08 + 0.04 * u(rng), 0.18 * u(rng)};
+    leaf.rpy = Eigen::Vector3d{M_PI / 2 + 0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng)};
     scene.shapes.push_back(leaf);
   }
 

@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
   for (long v = 0; v < views; ++v) {
     const RecordedView& rv = recorded[static_cast<std::size_t>(v) % recorded.size()];
     noisy = rv.fruit;
-    for (auto& p : noisy) p += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    for (auto& p : noisy) p += Eigen::Vector3d{noise(rng), noise(rng), noise(rng)};
     const auto t0 = std::chrono::steady_clock::now();
     host.onView(host::ViewData{noisy, no_full, rv.pose, static_cast<double>(v)});
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
