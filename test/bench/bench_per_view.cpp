@@ -2,9 +2,10 @@
 // fruit input stage (red test, depth edges, outliers) into the TSDF map, extract the surface, cluster, fit incrementally, predict the missing surface, hand out
 // the extra targets. Run: scripts/run.sh bench --benchmark_filter=PerView --benchmark_format=json
 //
-// The view sequence is recorded once per process from a seeded planner episode on scenario 2
+// The view sequences are recorded once per process from seeded planner episodes on scenario 2
 // (../shared/data; the procedural glasshouse when it is absent): the organized frame and the
-// sensor pose of every view, with depth noise. Each iteration replays it into a fresh estimator.
+// sensor pose of every view, with depth noise. Each iteration replays each episode into a fresh
+// estimator.
 #include <benchmark/benchmark.h>
 #include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/host/shape_estimator.h>
@@ -29,16 +30,25 @@ struct RecordedView {
 
 struct Recording {
   std::string scene;
-  std::vector<RecordedView> views;
+  std::vector<std::vector<RecordedView>> episodes;
+  std::vector<std::size_t> sizes() const {
+    std::vector<std::size_t> n;
+    for (const auto& e : episodes) n.push_back(e.size());
+    return n;
+  }
 };
 
 const Recording& recording() {
   static const Recording rec = [] {
     Recording r;
-    r.scene = bench::recordEpisode(planner::PlannerParams::Input::kCamera,
-                                   [&](const PinholeCamera&, const host::ViewData& view) {
-                                     r.views.push_back({*view.camera_frame, view.sensor_pose});
-                                   });
+    for (unsigned seed : bench::kEpisodeSeeds) {
+      r.episodes.emplace_back();
+      auto& views = r.episodes.back();
+      r.scene = bench::recordEpisode(planner::PlannerParams::Input::kCamera, seed,
+                                     [&](const PinholeCamera&, const host::ViewData& view) {
+                                       views.push_back({*view.camera_frame, view.sensor_pose});
+                                     });
+    }
     return r;
   }();
   return rec;
@@ -48,7 +58,7 @@ const Recording& recording() {
 
 static void BM_PerViewUpdate(benchmark::State& state) {
   const Recording& rec = recording();
-  if (rec.views.empty()) {
+  if (rec.episodes.empty() || rec.episodes.front().empty()) {
     state.SkipWithError("the recorded episode has no views");
     return;
   }
@@ -57,8 +67,10 @@ static void BM_PerViewUpdate(benchmark::State& state) {
   std::size_t fruits = 0, targets = 0, fits = 0, kept = 0, points = 0;
   const PointList none;
   for (auto _ : state) {
+    fruits = 0;
+    for (const auto& episode : rec.episodes) {
     host::SuperellipsoidEstimator estimator;
-    for (const auto& v : rec.views) {
+    for (const auto& v : episode) {
       const auto t0 = std::chrono::steady_clock::now();
       host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
       view.camera_frame = &v.frame;
@@ -80,9 +92,11 @@ static void BM_PerViewUpdate(benchmark::State& state) {
       per_view_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
       targets = extra.size();
     }
-    fruits = estimator.fruits().size();
+    fruits += estimator.fruits().size();
+    }
   }
-  state.counters["views"] = static_cast<double>(rec.views.size());
+  state.counters["episodes"] = static_cast<double>(rec.episodes.size());
+  state.counters["views"] = static_cast<double>(per_view_ms.size() / state.iterations());
   state.counters["median_ms"] = bench::quantile(per_view_ms, 0.5);
   state.counters["p95_ms"] = bench::quantile(per_view_ms, 0.95);
   state.counters["max_ms"] = *std::max_element(per_view_ms.begin(), per_view_ms.end());
@@ -112,9 +126,10 @@ BENCHMARK(BM_PerViewUpdate)->Unit(benchmark::kMillisecond)->Iterations(3);
 static void BM_InsertViewLatencyCameraFrame(benchmark::State& state) {
   const Recording& rec = recording();
   const PointList none;
-  bench::insertViewLatency(state, rec.views.size(), [&](host::ShapeEstimatorHost& host, std::size_t k) {
-    host::ViewData view{none, none, rec.views[k].pose, 0.0, host::ViewSource::kCameraFrame};
-    view.camera_frame = &rec.views[k].frame;
+  bench::insertViewLatency(state, rec.sizes(), [&](host::ShapeEstimatorHost& host, std::size_t e, std::size_t k) {
+    const RecordedView& v = rec.episodes[e][k];
+    host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
+    view.camera_frame = &v.frame;
     host.onView(view);
     return std::string();
   });

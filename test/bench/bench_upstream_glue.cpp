@@ -29,10 +29,13 @@ struct RoiMessage {
   geometry_msgs::Transform transform;
 };
 
-const std::vector<RoiMessage>& roiMessages() {
-  static const std::vector<RoiMessage> messages = [] {
+// One list of messages per recorded episode.
+const std::vector<std::vector<RoiMessage>>& roiMessages() {
+  static const std::vector<std::vector<RoiMessage>> episodes = [] {
+    std::vector<std::vector<RoiMessage>> all_episodes;
+    for (unsigned seed : bench::kEpisodeSeeds) {
     std::vector<RoiMessage> out;
-    bench::recordEpisode(planner::PlannerParams::Input::kRoi, [&](const PinholeCamera&, const host::ViewData& view) {
+    bench::recordEpisode(planner::PlannerParams::Input::kRoi, seed, [&](const PinholeCamera&, const host::ViewData& view) {
       RoiMessage m;
       const PointList& all = view.full_cloud;
       m.cloud = ros_io::toCloud(all, "world", ros::Time(0));
@@ -42,22 +45,26 @@ const std::vector<RoiMessage>& roiMessages() {
       m.transform = tf2::eigenToTransform(view.sensor_pose).transform;
       out.push_back(std::move(m));
     });
-    return out;
+    all_episodes.push_back(std::move(out));
+    }
+    return all_episodes;
   }();
-  return messages;
+  return episodes;
 }
 
 }  // namespace
 
 static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
-  const auto& messages = roiMessages();
-  if (messages.empty()) {
+  const auto& episodes = roiMessages();
+  if (episodes.empty() || episodes.front().empty()) {
     state.SkipWithError("the recorded episode has no views");
     return;
   }
   std::vector<double> per_view_ms, read_ms;
   std::size_t fruits = 0, points = 0;
   for (auto _ : state) {
+    fruits = 0;
+    for (const auto& messages : episodes) {
     host::SuperellipsoidEstimator estimator;
     for (const auto& m : messages) {
       const auto t0 = std::chrono::steady_clock::now();
@@ -75,9 +82,11 @@ static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
       per_view_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t0).count());
       points += view.fruit.size();
     }
-    fruits = estimator.fruits().size();
+    fruits += estimator.fruits().size();
+    }
   }
-  state.counters["views"] = static_cast<double>(messages.size());
+  state.counters["episodes"] = static_cast<double>(episodes.size());
+  state.counters["views"] = static_cast<double>(per_view_ms.size() / state.iterations());
   state.counters["median_ms"] = bench::quantile(per_view_ms, 0.5);
   state.counters["p95_ms"] = bench::quantile(per_view_ms, 0.95);
   state.counters["read_median_ms"] = bench::quantile(read_ms, 0.5);
@@ -90,9 +99,11 @@ BENCHMARK(BM_PerViewUpdateUpstreamGlue)->Unit(benchmark::kMillisecond)->Iteratio
 // host (veil filter and integration) while the fits run on the estimator's worker thread, views
 // back to back. Counters over all views.
 static void BM_InsertViewLatencyRoiCloud(benchmark::State& state) {
-  const auto& messages = roiMessages();
-  bench::insertViewLatency(state, messages.size(), [&](host::ShapeEstimatorHost& host, std::size_t k) {
-    const RoiMessage& m = messages[k];
+  const auto& episodes = roiMessages();
+  std::vector<std::size_t> sizes;
+  for (const auto& e : episodes) sizes.push_back(e.size());
+  bench::insertViewLatency(state, sizes, [&](host::ShapeEstimatorHost& host, std::size_t e, std::size_t k) {
+    const RoiMessage& m = episodes[e][k];
     ros_io::RoiView view;
     std::string error;
     if (ros_io::toRoiView(m.cloud, m.roi_indices, m.transform, "world", &view, &error))
