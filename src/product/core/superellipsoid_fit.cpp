@@ -207,13 +207,14 @@ struct Solution {
 // moving one back inside.
 constexpr int kProbeIterations = 8;
 
+// The bounds of shape coordinate k (a, b, c, e1, e2).
+double lowerBound(const FitParams& params, int k) { return k < 3 ? params.min_axis : params.min_e; }
+double upperBound(const FitParams& params, int k) { return k < 3 ? params.max_axis : params.max_e; }
+
 std::vector<int> coordinatesOnBounds(const double shape[5], const FitParams& params) {
   std::vector<int> on;
-  for (int k = 0; k < 5; ++k) {
-    const double lo = k < 3 ? params.min_axis : params.min_e;
-    const double hi = k < 3 ? params.max_axis : params.max_e;
-    if (shape[k] <= lo || shape[k] >= hi) on.push_back(k);
-  }
+  for (int k = 0; k < 5; ++k)
+    if (shape[k] <= lowerBound(params, k) || shape[k] >= upperBound(params, k)) on.push_back(k);
   return on;
 }
 
@@ -232,8 +233,8 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
                                  new AxisSimilarityPrior(n * params.gamma)),
                              nullptr, sol.shape);
   for (int k = 0; k < 5; ++k) {
-    problem.SetParameterLowerBound(sol.shape, k, k < 3 ? params.min_axis : params.min_e);
-    problem.SetParameterUpperBound(sol.shape, k, k < 3 ? params.max_axis : params.max_e);
+    problem.SetParameterLowerBound(sol.shape, k, lowerBound(params, k));
+    problem.SetParameterUpperBound(sol.shape, k, upperBound(params, k));
   }
   ceres::Solver::Options options;
   options.minimizer_type = ceres::TRUST_REGION;
@@ -283,10 +284,8 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
   eval.parameter_blocks = {sol.shape, sol.t, sol.rpy};
   problem.Evaluate(eval, &cost, nullptr, &gradient, nullptr);
   bool inward = false;
-  for (int k : held) {
-    const double hi = k < 3 ? params.max_axis : params.max_e;
-    inward = inward || (sol.shape[k] >= hi ? gradient[k] > 0.0 : gradient[k] < 0.0);
-  }
+  for (int k : held)
+    inward = inward || (sol.shape[k] >= upperBound(params, k) ? gradient[k] > 0.0 : gradient[k] < 0.0);
   if (inward && budget > 0) run(budget);
 }
 
@@ -320,8 +319,7 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
     Solution s;
     const double v[5] = {initial->a, initial->b, initial->c, initial->e1, initial->e2};
     for (int k = 0; k < 5; ++k)
-      s.shape[k] = std::min(k < 3 ? params.max_axis : params.max_e,
-                            std::max(k < 3 ? params.min_axis : params.min_e, v[k]));
+      s.shape[k] = std::min(upperBound(params, k), std::max(lowerBound(params, k), v[k]));
     for (int k = 0; k < 3; ++k) {
       s.t[k] = initial->t[k];
       s.rpy[k] = initial->rpy[k];
