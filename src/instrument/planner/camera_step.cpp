@@ -66,14 +66,13 @@ void insertIntoOctree(RoiOcTree* tree, const CameraView& v, const PlannerParams&
   const sim::RgbdFrame& frame = v.frame;
   PointList octree_points;
   std::vector<char> octree_fruit;
-  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  const double f = cam.focalLength();
   for (int row = 0; row < frame.height; row += p.octree_pixel_step)
     for (int u = 0; u < frame.width; u += p.octree_pixel_step) {
       const std::size_t px = static_cast<std::size_t>(row) * frame.width + u;
       const double z = frame.depth[px];
       if (!std::isfinite(z)) continue;
-      octree_points.push_back(cam.position + cam.rotation * Eigen::Vector3d((u + 0.5 - 0.5 * cam.width) / f * z,
-                                                                            (row + 0.5 - 0.5 * cam.height) / f * z, z));
+      octree_points.push_back(cam.position + cam.rotation * cam.pixelPoint(u, row, z, f));
       octree_fruit.push_back(v.mask[px] ? 1 : 0);
     }
   tree->insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);

@@ -24,10 +24,10 @@ PinholeCamera PinholeCamera::lookingAt(const Eigen::Vector3d& position, const Ei
   return cam;
 }
 
+double PinholeCamera::focalLength() const { return 0.5 * width / std::tan(0.5 * hfov_rad); }
+
 Eigen::Vector3d PinholeCamera::rayDirection(int u, int v) const {
-  const double f = 0.5 * width / std::tan(0.5 * hfov_rad);
-  const Eigen::Vector3d d((u + 0.5 - 0.5 * width) / f, (v + 0.5 - 0.5 * height) / f, 1.0);
-  return rotation * d.normalized();
+  return rotation * pixelPoint(u, v, 1.0, focalLength()).normalized();
 }
 
 namespace {

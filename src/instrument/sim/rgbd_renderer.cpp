@@ -310,14 +310,13 @@ FrameClouds cloudsFromFrame(const RgbdFrame& frame, const std::vector<std::uint8
   FrameClouds clouds;
   clouds.full.reserve(frame.depth.size());
   const PinholeCamera& cam = frame.camera;
-  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  const double f = cam.focalLength();
   for (int v = 0; v < frame.height; ++v)
     for (int u = 0; u < frame.width; ++u) {
       const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
       const double z = frame.depth[px];
       if (!std::isfinite(z)) continue;
-      const Eigen::Vector3d c((u + 0.5 - 0.5 * cam.width) / f * z, (v + 0.5 - 0.5 * cam.height) / f * z, z);
-      const Eigen::Vector3d p = cam.position + cam.rotation * c;
+      const Eigen::Vector3d p = cam.position + cam.rotation * cam.pixelPoint(u, v, z, f);
       clouds.full.push_back(p);
       if (full_pixels) full_pixels->push_back(px);
       if (px < mask.size() && mask[px]) clouds.fruit.push_back(p);
@@ -334,15 +333,14 @@ OrganizedFrame organizedFrame(const RgbdFrame& frame) {
   const PinholeCamera& cam = frame.camera;
   // depth_image_proc: x = (u - cx) z / fx with the principal point at the image centre, between
   // the two middle pixels (cloudsFromFrame's pixel centres).
-  const double f = 0.5 * cam.width / std::tan(0.5 * cam.hfov_rad);
+  const double f = cam.focalLength();
   for (int v = 0; v < frame.height; ++v)
     for (int u = 0; u < frame.width; ++u) {
       const std::size_t px = static_cast<std::size_t>(v) * frame.width + u;
       const double z = frame.depth[px];
       if (!std::isfinite(z)) continue;
-      out.xyz[3 * px] = static_cast<float>((u + 0.5 - 0.5 * cam.width) / f * z);
-      out.xyz[3 * px + 1] = static_cast<float>((v + 0.5 - 0.5 * cam.height) / f * z);
-      out.xyz[3 * px + 2] = static_cast<float>(z);
+      const Eigen::Vector3d c = cam.pixelPoint(u, v, z, f);
+      for (int k = 0; k < 3; ++k) out.xyz[3 * px + k] = static_cast<float>(c[k]);
     }
   return out;
 }

@@ -20,6 +20,13 @@ struct PinholeCamera {
                                  int width = 640, int height = 480);
   // World-frame unit ray through the centre of pixel (u, v).
   Eigen::Vector3d rayDirection(int u, int v) const;
+  // The focal length in pixels (square pixels, principal point at the image centre).
+  double focalLength() const;
+  // The camera-frame point seen at the centre of pixel (u, v) at depth z along the optical axis;
+  // `focal` is focalLength(), passed in so that a loop over the pixels computes it once.
+  Eigen::Vector3d pixelPoint(int u, int v, double z, double focal) const {
+    return {(u + 0.5 - 0.5 * width) / focal * z, (v + 0.5 - 0.5 * height) / focal * z, z};
+  }
 };
 
 struct AnalyticScene {
