@@ -57,6 +57,14 @@ inline std::string recordEpisode(planner::PlannerParams::Input input, unsigned s
   return name;
 }
 
+// The number of views of each recorded episode.
+template <typename View>
+std::vector<std::size_t> episodeSizes(const std::vector<std::vector<View>>& episodes) {
+  std::vector<std::size_t> sizes;
+  for (const auto& e : episodes) sizes.push_back(e.size());
+  return sizes;
+}
+
 inline double quantile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
   const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));

@@ -31,11 +31,6 @@ struct RecordedView {
 struct Recording {
   std::string scene;
   std::vector<std::vector<RecordedView>> episodes;
-  std::vector<std::size_t> sizes() const {
-    std::vector<std::size_t> n;
-    for (const auto& e : episodes) n.push_back(e.size());
-    return n;
-  }
 };
 
 const Recording& recording() {
@@ -69,30 +64,30 @@ static void BM_PerViewUpdate(benchmark::State& state) {
   for (auto _ : state) {
     fruits = 0;
     for (const auto& episode : rec.episodes) {
-    host::SuperellipsoidEstimator estimator;
-    for (const auto& v : episode) {
-      const auto t0 = std::chrono::steady_clock::now();
-      host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
-      view.camera_frame = &v.frame;
-      estimator.insertView(view);
-      integrate_s += estimator.lastIntegration().seconds;
-      merge_s += estimator.lastIntegration().merge_seconds;
-      neighbourhood_s += estimator.lastIntegration().neighbourhood_seconds;
-      rays_s += estimator.lastIntegration().ray_seconds;
-      points += estimator.lastIntegration().points_in;
-      estimator.update();
-      const PipelineStats stats = estimator.lastPipelineStats();
-      surface_s += estimator.lastSurfaceSeconds();
-      cluster_s += stats.cluster_seconds;
-      fit_s += stats.fit_seconds;
-      fits += static_cast<std::size_t>(stats.fitted);
-      kept += static_cast<std::size_t>(stats.kept);
-      const PointList extra = estimator.extraTargets();
-      const auto t1 = std::chrono::steady_clock::now();
-      per_view_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
-      targets = extra.size();
-    }
-    fruits += estimator.fruits().size();
+      host::SuperellipsoidEstimator estimator;
+      for (const auto& v : episode) {
+        const auto t0 = std::chrono::steady_clock::now();
+        host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
+        view.camera_frame = &v.frame;
+        estimator.insertView(view);
+        integrate_s += estimator.lastIntegration().seconds;
+        merge_s += estimator.lastIntegration().merge_seconds;
+        neighbourhood_s += estimator.lastIntegration().neighbourhood_seconds;
+        rays_s += estimator.lastIntegration().ray_seconds;
+        points += estimator.lastIntegration().points_in;
+        estimator.update();
+        const PipelineStats stats = estimator.lastPipelineStats();
+        surface_s += estimator.lastSurfaceSeconds();
+        cluster_s += stats.cluster_seconds;
+        fit_s += stats.fit_seconds;
+        fits += static_cast<std::size_t>(stats.fitted);
+        kept += static_cast<std::size_t>(stats.kept);
+        const PointList extra = estimator.extraTargets();
+        const auto t1 = std::chrono::steady_clock::now();
+        per_view_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        targets = extra.size();
+      }
+      fruits += estimator.fruits().size();
     }
   }
   state.counters["episodes"] = static_cast<double>(rec.episodes.size());
@@ -126,7 +121,7 @@ BENCHMARK(BM_PerViewUpdate)->Unit(benchmark::kMillisecond)->Iterations(3);
 static void BM_InsertViewLatencyCameraFrame(benchmark::State& state) {
   const Recording& rec = recording();
   const PointList none;
-  bench::insertViewLatency(state, rec.sizes(), [&](host::ShapeEstimatorHost& host, std::size_t e, std::size_t k) {
+  bench::insertViewLatency(state, bench::episodeSizes(rec.episodes), [&](host::ShapeEstimatorHost& host, std::size_t e, std::size_t k) {
     const RecordedView& v = rec.episodes[e][k];
     host::ViewData view{none, none, v.pose, 0.0, host::ViewSource::kCameraFrame};
     view.camera_frame = &v.frame;

@@ -34,18 +34,18 @@ const std::vector<std::vector<RoiMessage>>& roiMessages() {
   static const std::vector<std::vector<RoiMessage>> episodes = [] {
     std::vector<std::vector<RoiMessage>> all_episodes;
     for (unsigned seed : bench::kEpisodeSeeds) {
-    std::vector<RoiMessage> out;
-    bench::recordEpisode(planner::PlannerParams::Input::kRoi, seed, [&](const PinholeCamera&, const host::ViewData& view) {
-      RoiMessage m;
-      const PointList& all = view.full_cloud;
-      m.cloud = ros_io::toCloud(all, "world", ros::Time(0));
-      std::map<std::array<double, 3>, std::int32_t> index;
-      for (std::size_t i = 0; i < all.size(); ++i) index[{all[i].x(), all[i].y(), all[i].z()}] = static_cast<std::int32_t>(i);
-      for (const auto& p : view.fruit_cloud) m.roi_indices.push_back(index.at({p.x(), p.y(), p.z()}));
-      m.transform = tf2::eigenToTransform(view.sensor_pose).transform;
-      out.push_back(std::move(m));
-    });
-    all_episodes.push_back(std::move(out));
+      std::vector<RoiMessage> out;
+      bench::recordEpisode(planner::PlannerParams::Input::kRoi, seed, [&](const PinholeCamera&, const host::ViewData& view) {
+        RoiMessage m;
+        const PointList& all = view.full_cloud;
+        m.cloud = ros_io::toCloud(all, "world", ros::Time(0));
+        std::map<std::array<double, 3>, std::int32_t> index;
+        for (std::size_t i = 0; i < all.size(); ++i) index[{all[i].x(), all[i].y(), all[i].z()}] = static_cast<std::int32_t>(i);
+        for (const auto& p : view.fruit_cloud) m.roi_indices.push_back(index.at({p.x(), p.y(), p.z()}));
+        m.transform = tf2::eigenToTransform(view.sensor_pose).transform;
+        out.push_back(std::move(m));
+      });
+      all_episodes.push_back(std::move(out));
     }
     return all_episodes;
   }();
@@ -65,24 +65,24 @@ static void BM_PerViewUpdateUpstreamGlue(benchmark::State& state) {
   for (auto _ : state) {
     fruits = 0;
     for (const auto& messages : episodes) {
-    host::SuperellipsoidEstimator estimator;
-    for (const auto& m : messages) {
-      const auto t0 = std::chrono::steady_clock::now();
-      ros_io::RoiView view;
-      std::string error;
-      if (!ros_io::toRoiView(m.cloud, m.roi_indices, m.transform, "world", &view, &error)) {
-        state.SkipWithError(error.c_str());
-        return;
+      host::SuperellipsoidEstimator estimator;
+      for (const auto& m : messages) {
+        const auto t0 = std::chrono::steady_clock::now();
+        ros_io::RoiView view;
+        std::string error;
+        if (!ros_io::toRoiView(m.cloud, m.roi_indices, m.transform, "world", &view, &error)) {
+          state.SkipWithError(error.c_str());
+          return;
+        }
+        const auto t1 = std::chrono::steady_clock::now();
+        estimator.insertView({view.fruit, view.all, view.sensor_pose, 0.0, host::ViewSource::kRoiCloud});
+        estimator.update();
+        const auto t2 = std::chrono::steady_clock::now();
+        read_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        per_view_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t0).count());
+        points += view.fruit.size();
       }
-      const auto t1 = std::chrono::steady_clock::now();
-      estimator.insertView({view.fruit, view.all, view.sensor_pose, 0.0, host::ViewSource::kRoiCloud});
-      estimator.update();
-      const auto t2 = std::chrono::steady_clock::now();
-      read_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
-      per_view_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t0).count());
-      points += view.fruit.size();
-    }
-    fruits += estimator.fruits().size();
+      fruits += estimator.fruits().size();
     }
   }
   state.counters["episodes"] = static_cast<double>(episodes.size());
@@ -100,9 +100,7 @@ BENCHMARK(BM_PerViewUpdateUpstreamGlue)->Unit(benchmark::kMillisecond)->Iteratio
 // back to back. Counters over all views.
 static void BM_InsertViewLatencyRoiCloud(benchmark::State& state) {
   const auto& episodes = roiMessages();
-  std::vector<std::size_t> sizes;
-  for (const auto& e : episodes) sizes.push_back(e.size());
-  bench::insertViewLatency(state, sizes, [&](host::ShapeEstimatorHost& host, std::size_t e, std::size_t k) {
+  bench::insertViewLatency(state, bench::episodeSizes(episodes), [&](host::ShapeEstimatorHost& host, std::size_t e, std::size_t k) {
     const RoiMessage& m = episodes[e][k];
     ros_io::RoiView view;
     std::string error;
