@@ -66,7 +66,7 @@ TEST(FruitShapePipeline, TwoFruitsTwoCentimetresApartAreTwoFruits) {
   for (const auto* t : {&a, &b}) {
     const FruitEstimate* f = nearest(fruits, t->t);
     EXPECT_TRUE(f->accepted) << f->reason;
-    EXPECT_LT((f->center() - t->t).norm(), 0.004);
+    EXPECT_LT((f->center() - t->t).norm(), 0.005);  // a 0.6-seen sphere: about one voxel, not the 5 cm of a merged fit
   }
 }
 

@@ -189,7 +189,7 @@ void FitParams::validate() const {
 
 namespace {
 
-constexpr size_t kStartSubsample = 250;  // points per competing start
+constexpr size_t kStartSubsample = 80;  // points per competing start
 
 struct Solution {
   double shape[5], t[3], rpy[3];
@@ -199,17 +199,59 @@ struct Solution {
   std::string message;
 };
 
-// Ceres keeps a bounded coordinate inside its box by projecting each step. Once an exponent or
-// an axis presses against its bound, the steps of the other parameters, computed as if it could
-// move on, are mostly wasted and LM crawls for tens of iterations. So a solve that has not
-// converged after a few iterations holds the shape coordinates that sit on a bound there (an
-// active set) and goes on; at the end it lets them go again only if the cost would fall by
-// moving one back inside.
-constexpr int kProbeIterations = 8;
-
 // The bounds of shape coordinate k (a, b, c, e1, e2).
 double lowerBound(const FitParams& params, int k) { return k < 3 ? params.min_axis : params.min_e; }
 double upperBound(const FitParams& params, int k) { return k < 3 ? params.max_axis : params.max_e; }
+
+// The shape's box as a manifold: a step is clamped into the bounds, and `held` coordinates do
+// not move. Ceres' own parameter bounds do the same clamping, but they also make every LM
+// iteration run a projected line search that evaluates the Jacobian once more (Ceres calls
+// that search "not terribly effective", issue 187); this keeps the problem unconstrained.
+class ShapeBox : public ceres::Manifold {
+ public:
+  ShapeBox(const FitParams& params, const std::vector<int>& held) {
+    for (int k = 0; k < 5; ++k) {
+      lower_[k] = lowerBound(params, k);
+      upper_[k] = upperBound(params, k);
+      if (std::find(held.begin(), held.end(), k) == held.end()) free_.push_back(k);
+    }
+  }
+  int AmbientSize() const override { return 5; }
+  int TangentSize() const override { return static_cast<int>(free_.size()); }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    std::copy(x, x + 5, x_plus_delta);
+    for (std::size_t i = 0; i < free_.size(); ++i) {
+      const int k = free_[i];
+      x_plus_delta[k] = std::min(upper_[k], std::max(lower_[k], x[k] + delta[i]));
+    }
+    return true;
+  }
+  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {  // 5 x tangent, row major
+    std::fill(jacobian, jacobian + 5 * free_.size(), 0.0);
+    for (std::size_t i = 0; i < free_.size(); ++i) jacobian[free_[i] * free_.size() + i] = 1.0;
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    for (std::size_t i = 0; i < free_.size(); ++i) y_minus_x[i] = y[free_[i]] - x[free_[i]];
+    return true;
+  }
+  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {  // tangent x 5
+    std::fill(jacobian, jacobian + 5 * free_.size(), 0.0);
+    for (std::size_t i = 0; i < free_.size(); ++i) jacobian[i * 5 + free_[i]] = 1.0;
+    return true;
+  }
+
+ private:
+  double lower_[5], upper_[5];
+  std::vector<int> free_;
+};
+
+// Once an exponent or an axis presses against its bound, the steps of the other parameters,
+// computed as if it could move on, are mostly wasted and LM crawls for tens of iterations. So a
+// solve that has not converged after a few iterations holds the shape coordinates that sit on a
+// bound (an active set) and goes on; at the end it lets them go again only if the cost would
+// fall by moving one back inside.
+constexpr int kProbeIterations = 8;
 
 std::vector<int> coordinatesOnBounds(const double shape[5], const FitParams& params) {
   std::vector<int> on;
@@ -232,10 +274,6 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<AxisSimilarityPrior, 3, 5>(
                                  new AxisSimilarityPrior(n * params.gamma)),
                              nullptr, sol.shape);
-  for (int k = 0; k < 5; ++k) {
-    problem.SetParameterLowerBound(sol.shape, k, lowerBound(params, k));
-    problem.SetParameterUpperBound(sol.shape, k, upperBound(params, k));
-  }
   ceres::Solver::Options options;
   options.minimizer_type = ceres::TRUST_REGION;
   options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
@@ -259,14 +297,15 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
   };
   // Holds `held` (shape coordinates) constant; none: all free again.
   auto hold = [&](const std::vector<int>& held) {
-    problem.SetParameterBlockVariable(sol.shape);
-    problem.SetManifold(sol.shape, nullptr);
-    if (held.size() == 5)
+    if (held.size() == 5) {
       problem.SetParameterBlockConstant(sol.shape);
-    else if (!held.empty())
-      problem.SetManifold(sol.shape, new ceres::SubsetManifold(5, held));
+      return;
+    }
+    problem.SetParameterBlockVariable(sol.shape);
+    problem.SetManifold(sol.shape, new ShapeBox(params, held));
   };
 
+  hold({});
   run(std::min(budget, kProbeIterations));
   const std::vector<int> held = coordinatesOnBounds(sol.shape, params);
   if (sol.converged || budget <= 0 || held.empty()) {
