@@ -28,7 +28,9 @@ struct PipelineParams {
   // A changed cluster that one accepted fruit covered before keeps that fit, unrefitted, while
   // the fit still explains it: the RMS radial residual of its points under the old fit at most
   // (1 + refit_tolerance) times the old one (1 mm at least), and at most refit_tolerance more
-  // points. A view that only re-observes a fruit then costs no fit. 0: refit every change.
+  // points. A view that only re-observes a fruit then costs no fit. Touching fruits split
+  // before are split again along their previous fits, each part kept or refitted the same way.
+  // 0: refit every change, and split from scratch.
   double refit_tolerance = 0.1;
   FitParams fit;
   MissingSurfaceParams missing;
@@ -46,7 +48,9 @@ struct PipelineStats {
   int accepted = 0;
   double seconds = 0.0;          // all of it; of which
   double cluster_seconds = 0.0;  // Euclidean clustering
-  double fit_seconds = 0.0;      // the superellipsoid fits (centre prior and solver)
+  double prior_seconds = 0.0;    // normals and centre priors of the clusters fitted
+  double fit_seconds = 0.0;      // the superellipsoid fits (the solver)
+  double missing_seconds = 0.0;  // predicted unseen surfaces
 };
 
 class FruitShapePipeline {
@@ -71,13 +75,24 @@ class FruitShapePipeline {
     std::size_t cluster_points = 0;
     std::size_t fitted_points = 0;  // of the points its fit was made on (kept fits do not grow it)
     std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells of this fruit's points
+    std::size_t split_points = 0;  // a part of a split: its cluster's size when the split was decided
   };
+  using Parts = std::vector<std::pair<PointList, FruitEstimate>>;
 
   FruitEstimate estimateCluster(const PointList& points, int id, const Track* previous);
   // The cluster as one fruit, or, if no superellipsoid fits it, split into parts that fit.
   // `cells`: the points' occupied 1 cm cells if the caller has them.
-  std::vector<std::pair<PointList, FruitEstimate>> estimateWithSplit(const PointList& points, int depth,
-                                                                     const std::unordered_set<std::uint64_t>* cells = nullptr);
+  Parts estimateWithSplit(const PointList& points, int depth, const std::unordered_set<std::uint64_t>* cells = nullptr);
+  // A changed cluster that covers exactly the parts of one earlier split, all accepted: its
+  // points go to the part whose fit explains them better, and each part keeps its fit (see
+  // refit_tolerance) or is refitted from it. Empty if the cluster is not such a one, has grown
+  // too much since the split was decided, or a part no longer fits: the full split runs then.
+  std::vector<Track> splitAsBefore(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
+                                   const std::vector<char>& reused);
+  // Whether `fit`, made on `fitted_points` points, still explains `points` (refit_tolerance).
+  bool stillFits(const FruitEstimate& fit, std::size_t fitted_points, const PointList& points) const;
+  // `fit` for the cluster (part) `points`: described anew, unseen surface recomputed.
+  FruitEstimate keptEstimate(const FruitEstimate& fit, const PointList& points);
   int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
   // The previous fruit the changed cluster's points still fit (see refit_tolerance), or -1.
   int stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,

@@ -58,7 +58,8 @@ static void BM_PerViewUpdate(benchmark::State& state) {
     return;
   }
   std::vector<double> per_view_ms;
-  double integrate_s = 0, merge_s = 0, neighbourhood_s = 0, rays_s = 0, surface_s = 0, cluster_s = 0, fit_s = 0;
+  double integrate_s = 0, merge_s = 0, neighbourhood_s = 0, rays_s = 0, surface_s = 0, cluster_s = 0, fit_s = 0,
+         pipeline_s = 0, prior_s = 0, missing_s = 0;
   std::size_t fruits = 0, targets = 0, fits = 0, kept = 0, points = 0;
   const PointList none;
   for (auto _ : state) {
@@ -80,6 +81,9 @@ static void BM_PerViewUpdate(benchmark::State& state) {
         surface_s += estimator.lastSurfaceSeconds();
         cluster_s += stats.cluster_seconds;
         fit_s += stats.fit_seconds;
+        pipeline_s += stats.seconds;
+        prior_s += stats.prior_seconds;
+        missing_s += stats.missing_seconds;
         fits += static_cast<std::size_t>(stats.fitted);
         kept += static_cast<std::size_t>(stats.kept);
         const PointList extra = estimator.extraTargets();
@@ -105,7 +109,10 @@ static void BM_PerViewUpdate(benchmark::State& state) {
   // (more refits) shows here, not as a slower fit.
   state.counters["surface_ms"] = 1e3 * surface_s / static_cast<double>(per_view_ms.size());
   state.counters["cluster_ms"] = 1e3 * cluster_s / static_cast<double>(per_view_ms.size());
+  state.counters["pipeline_ms"] = 1e3 * pipeline_s / static_cast<double>(per_view_ms.size());
+  state.counters["prior_ms"] = 1e3 * prior_s / static_cast<double>(per_view_ms.size());
   state.counters["fit_ms"] = 1e3 * fit_s / static_cast<double>(per_view_ms.size());
+  state.counters["missing_ms"] = 1e3 * missing_s / static_cast<double>(per_view_ms.size());
   state.counters["fits"] = static_cast<double>(fits) / static_cast<double>(state.iterations());
   // Changed clusters the previous fit still explained: not refitted.
   state.counters["kept"] = static_cast<double>(kept) / static_cast<double>(state.iterations());

@@ -2,6 +2,7 @@
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <limits>
 
 using namespace fruit_shape_completion;
@@ -244,4 +245,50 @@ TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) 
     EXPECT_NEAR(f->volume, t->volume(), 0.1 * t->volume());
   }
   EXPECT_GE(pipeline.lastStats().splits, 1);
+}
+
+TEST(FruitShapePipeline, TouchingFruitsSplitBeforeAreSplitAgainAlongTheirFits) {
+  // Two touching fruits (one cluster) seen from one side, then again with more of them seen.
+  Superellipsoid a, b;
+  a.a = a.b = a.c = 0.04;
+  b = a;
+  a.t = Eigen::Vector3d(0, 0, 0.5);
+  b.t = Eigen::Vector3d(0.085, 0, 0.5);
+  auto view = [&](double seen, unsigned seed) {
+    PointList cloud = scan(a, seen, Eigen::Vector3d(0, -1, 0.2), seed);
+    const PointList pb = scan(b, seen, Eigen::Vector3d(0, -1, 0.2), seed + 100);
+    cloud.insert(cloud.end(), pb.begin(), pb.end());
+    return cloud;
+  };
+  auto check = [&](const std::vector<FruitEstimate>& fruits) {
+    ASSERT_EQ(fruits.size(), 2u);
+    for (const auto* t : {&a, &b}) {
+      const FruitEstimate* f = nearest(fruits, t->t);
+      ASSERT_TRUE(f->accepted) << f->reason;
+      EXPECT_LT((f->center() - t->t).norm(), 0.005);
+      EXPECT_NEAR(f->volume, t->volume(), 0.1 * t->volume());
+    }
+  };
+  FruitShapePipeline pipeline;
+  check(pipeline.update(view(0.75, 1)));
+  ASSERT_EQ(pipeline.lastStats().splits, 1);
+  const int first_ids[2] = {pipeline.fruits()[0].id, pipeline.fruits()[1].id};
+  // 10-20 % more points: the two previous fits share the points out and at most two fits run
+  // (the full split fits the whole cluster, both trial halves and both parts).
+  const PointList more = view(0.85, 2);
+  check(pipeline.update(more));
+  EXPECT_EQ(pipeline.lastStats().splits, 1);
+  EXPECT_LE(pipeline.lastStats().fitted, 2);
+  std::vector<int> ids = {pipeline.fruits()[0].id, pipeline.fruits()[1].id};
+  std::sort(ids.begin(), ids.end());
+  std::vector<int> before = {first_ids[0], first_ids[1]};
+  std::sort(before.begin(), before.end());
+  EXPECT_EQ(ids, before);
+  // Without the tolerance the same change runs the full split.
+  PipelineParams strict;
+  strict.refit_tolerance = 0.0;
+  FruitShapePipeline always(strict);
+  always.update(view(0.75, 1));
+  check(always.update(more));
+  EXPECT_GE(always.lastStats().fitted, 3);
 }

@@ -16,6 +16,10 @@ namespace {
 
 constexpr double kTrackCell = 0.01;  // cell size for matching clusters between updates
 
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 std::uint64_t mix(std::uint64_t x) {  // splitmix64 finaliser
   x += 0x9e3779b97f4a7c15ull;
   x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
@@ -101,6 +105,7 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
   describeCluster(points, &est);
   est.shape.t = est.points_centroid;
 
+  const auto prior_start = std::chrono::steady_clock::now();
   const SurfaceNormals normals = estimateNormals(points, params_.normals, est.points_centroid);
   const ClusterShapeCheck check = checkClusterShape(points, normals.normals);
   if (!check.ok) {
@@ -108,6 +113,7 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
     return est;
   }
   est.center_prior = estimateFruitCenter(points, normals.normals, params_.center_lambda);
+  stats_.prior_seconds += secondsSince(prior_start);
   const Superellipsoid* warm =
       previous != nullptr && previous->estimate.accepted ? &previous->estimate.shape : nullptr;
   const FitResult fit = fitSuperellipsoid(points, est.center_prior, params_.fit, warm);
@@ -120,8 +126,11 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
   est.fit_seconds = fit.seconds;
   stats_.fit_seconds += fit.seconds;
   est.volume = fit.shape.volume();
-  if (est.accepted && params_.missing.samples > 0)
+  if (est.accepted && params_.missing.samples > 0) {
+    const auto missing_start = std::chrono::steady_clock::now();
     est.missing_surface = predictMissingSurface(est.shape, points, params_.missing);
+    stats_.missing_seconds += secondsSince(missing_start);
+  }
   return est;
 }
 
@@ -155,20 +164,97 @@ int FruitShapePipeline::stillExplainedBy(const PointList& points, const std::uno
     only = static_cast<int>(k);
   }
   if (only < 0) return -1;
-  const Track& t = tracks_[only];
-  if (!t.estimate.accepted || static_cast<double>(points.size()) >
-                                  (1.0 + params_.refit_tolerance) * static_cast<double>(t.fitted_points))
-    return -1;
-  const double rms = rmsRadialDistance(points, t.estimate.shape);
-  return rms <= (1.0 + params_.refit_tolerance) * std::max(t.estimate.rms, 0.001) ? only : -1;
+  return stillFits(tracks_[only].estimate, tracks_[only].fitted_points, points) ? only : -1;
 }
 
-std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWithSplit(
+bool FruitShapePipeline::stillFits(const FruitEstimate& fit, std::size_t fitted_points, const PointList& points) const {
+  const double tolerance = 1.0 + params_.refit_tolerance;
+  return fit.accepted && static_cast<double>(points.size()) <= tolerance * static_cast<double>(fitted_points) &&
+         rmsRadialDistance(points, fit.shape) <= tolerance * std::max(fit.rms, 0.001);
+}
+
+FruitEstimate FruitShapePipeline::keptEstimate(const FruitEstimate& fit, const PointList& points) {
+  FruitEstimate e = fit;
+  describeCluster(points, &e);
+  if (params_.missing.samples > 0) {
+    const auto missing_start = std::chrono::steady_clock::now();
+    e.missing_surface = predictMissingSurface(e.shape, points, params_.missing);
+    stats_.missing_seconds += secondsSince(missing_start);
+  }
+  e.refitted = false;
+  return e;
+}
+
+std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
+    const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused) {
+  // The previous fruits the cluster shares cells with: all parts of one split, all accepted.
+  std::vector<int> parts;
+  for (std::size_t k = 0; k < tracks_.size(); ++k)
+    for (auto cell : tracks_[k].cells)
+      if (cells.count(cell)) {
+        parts.push_back(static_cast<int>(k));
+        break;
+      }
+  if (parts.size() < 2) return {};
+  const Track& first = tracks_[parts.front()];
+  // The full split (whole fit first) runs again once the cluster has grown this much since the
+  // split was decided, so that fruits split in error can merge when more of them is seen.
+  constexpr double kSplitRecheckGrowth = 0.25;
+  if (first.split_points == 0 ||
+      static_cast<double>(points.size()) > (1.0 + kSplitRecheckGrowth) * static_cast<double>(first.split_points))
+    return {};
+  std::size_t same_split = 0;
+  for (const auto& t : tracks_)
+    same_split += t.cluster_signature == first.cluster_signature && t.cluster_points == first.cluster_points;
+  if (same_split != parts.size()) return {};
+  for (int k : parts) {
+    const Track& t = tracks_[k];
+    if (reused[k] || !t.estimate.accepted || t.split_points != first.split_points ||
+        t.cluster_signature != first.cluster_signature || t.cluster_points != first.cluster_points)
+      return {};
+  }
+  // Each point to the part whose fit explains it better.
+  std::vector<Eigen::VectorXd> distance;
+  for (int k : parts) distance.push_back(radialDistances(points, tracks_[k].estimate.shape));
+  std::vector<PointList> part_points(parts.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::size_t best = 0;
+    for (std::size_t j = 1; j < parts.size(); ++j)
+      if (distance[j][static_cast<Eigen::Index>(i)] < distance[best][static_cast<Eigen::Index>(i)]) best = j;
+    part_points[best].push_back(points[i]);
+  }
+  std::vector<Track> out;
+  int kept = 0;
+  for (std::size_t j = 0; j < parts.size(); ++j) {
+    const Track& previous = tracks_[parts[j]];
+    const PointList& pts = part_points[j];
+    if (static_cast<int>(pts.size()) < params_.clustering.min_size) return {};
+    Track t;
+    t.split_points = previous.split_points;
+    t.cells = occupiedCells(pts);
+    if (stillFits(previous.estimate, previous.fitted_points, pts)) {
+      t.estimate = keptEstimate(previous.estimate, pts);
+      t.fitted_points = previous.fitted_points;
+      ++kept;
+    } else {
+      t.estimate = estimateCluster(pts, -1, &previous);
+      ++stats_.fitted;
+      if (!t.estimate.accepted) return {};
+      t.fitted_points = pts.size();
+    }
+    out.push_back(std::move(t));
+  }
+  stats_.kept += kept;
+  ++stats_.splits;
+  return out;
+}
+
+FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(
     const PointList& points, int depth, const std::unordered_set<std::uint64_t>* cells) {
   const int warm = bestOverlap(cells ? *cells : occupiedCells(points));
   FruitEstimate whole = estimateCluster(points, -1, warm >= 0 ? &tracks_[warm] : nullptr);
   ++stats_.fitted;
-  std::vector<std::pair<PointList, FruitEstimate>> out;
+  Parts out;
   const int min_part = params_.clustering.min_size;
   // Touching fruits end up in one cluster, which no single superellipsoid fits: split it in
   // two (2-means along its main axis, then one reassignment of points to the fit that explains
@@ -218,6 +304,7 @@ std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWit
   FruitEstimate first[2] = {estimateCluster(part[0], -1, previousOf(part[0])),
                             estimateCluster(part[1], -1, previousOf(part[1]))};
   stats_.fitted += 2;
+  const std::size_t half_points[2] = {part[0].size(), part[1].size()};
   if (first[0].converged && first[1].converged) {
     const Eigen::VectorXd d0 = radialDistances(points, first[0].shape);
     const Eigen::VectorXd d1 = radialDistances(points, first[1].shape);
@@ -227,8 +314,14 @@ std::vector<std::pair<PointList, FruitEstimate>> FruitShapePipeline::estimateWit
       return out;
     }
   }
-  std::vector<std::pair<PointList, FruitEstimate>> parts;
+  Parts parts;
   for (int k = 0; k < 2; ++k) {
+    // A half whose trial fit still explains its reassigned points keeps that fit.
+    if (params_.refit_tolerance > 0.0 && stillFits(first[k], half_points[k], part[k])) {
+      parts.emplace_back(part[k], keptEstimate(first[k], part[k]));
+      parts.back().second.refitted = true;
+      continue;
+    }
     auto sub = estimateWithSplit(part[k], depth + 1);
     parts.insert(parts.end(), sub.begin(), sub.end());
   }
@@ -288,24 +381,33 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       // The same fruit seen again: new points, the old fit, its unseen surface recomputed.
       reused[kept] = 1;
       Track t = tracks_[kept];
-      FruitEstimate& e = t.estimate;
-      describeCluster(pts, &e);
-      if (params_.missing.samples > 0) e.missing_surface = predictMissingSurface(e.shape, pts, params_.missing);
-      e.refitted = false;
+      t.estimate = keptEstimate(t.estimate, pts);
       t.cluster_signature = signature;
       t.cluster_points = pts.size();
       t.cells = cells;
+      t.split_points = 0;  // a cluster of its own now
       next.push_back(std::move(t));
       ++stats_.kept;
       continue;
     }
-    for (auto& part : estimateWithSplit(pts, 0, &cells)) {
+    std::vector<Track> again = params_.refit_tolerance > 0.0 ? splitAsBefore(pts, cells, reused) : std::vector<Track>();
+    if (!again.empty()) {
+      for (auto& t : again) {
+        t.cluster_signature = signature;
+        t.cluster_points = pts.size();
+        pending.push_back(std::move(t));
+      }
+      continue;
+    }
+    Parts parts = estimateWithSplit(pts, 0, &cells);
+    for (auto& part : parts) {
       Track t;
       t.estimate = std::move(part.second);
       t.cluster_signature = signature;
       t.cluster_points = pts.size();
       t.fitted_points = part.first.size();
       t.cells = part.first.size() == pts.size() ? cells : occupiedCells(part.first);  // unsplit: the cluster's own cells
+      t.split_points = parts.size() > 1 ? pts.size() : 0;
       pending.push_back(std::move(t));
     }
   }
