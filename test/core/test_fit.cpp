@@ -245,8 +245,10 @@ TEST(SuperellipsoidFit, AnalyticJacobianMatchesFiniteDifferences) {
     double* shape[5] = {&s.a, &s.b, &s.c, &s.e1, &s.e2};
     return k < 5 ? *shape[k] : (k < 8 ? s.t[k - 5] : s.rpy[k - 8]);
   };
+  // The powers are computed in single precision (residual error ~1e-8 m here), so the central
+  // differences use a step of 1e-4; a wrong derivative is off by far more than the 1e-3 allowed.
   for (int k = 0; k < 11; ++k) {
-    const double h = 1e-7;
+    const double h = 1e-4;
     Superellipsoid plus = se, minus = se;
     param(plus, k) += h;
     param(minus, k) -= h;
@@ -254,10 +256,10 @@ TEST(SuperellipsoidFit, AnalyticJacobianMatchesFiniteDifferences) {
     evaluateRadialResiduals(pts, plus, &rp, nullptr);
     evaluateRadialResiduals(pts, minus, &rm, nullptr);
     const Eigen::VectorXd numeric = (rp - rm) / (2 * h);
-    EXPECT_LT((numeric - J.col(k)).norm(), 1e-5 * (1.0 + numeric.norm())) << "parameter " << k;
+    EXPECT_LT((numeric - J.col(k)).norm(), 1e-3 * (1.0 + numeric.norm())) << "parameter " << k;
   }
-  // The residual magnitude is the radial distance.
-  for (int i = 0; i < 50; ++i) EXPECT_NEAR(std::abs(r[i]), se.radialDistance(pts[i]), 1e-9);
+  // The residual magnitude is the radial distance (computed in double there), to 0.1 um.
+  for (int i = 0; i < 50; ++i) EXPECT_NEAR(std::abs(r[i]), se.radialDistance(pts[i]), 1e-7);
 }
 
 // The final solve on an evenly strided 600 of a fruit's thousands of points finds the fit all

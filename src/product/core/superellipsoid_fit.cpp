@@ -28,7 +28,6 @@ class RadialResiduals : public ceres::CostFunction {
 
   // Column-wise Eigen array expressions: exp/log run vectorised over all points.
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
-    using Eigen::ArrayXd;
     const double* sh = params[0];
     const double a = sh[0], b = sh[1], c = sh[2], e1 = sh[3], e2 = sh[4];
     const double* rpy = params[2];
@@ -47,49 +46,55 @@ class RadialResiduals : public ceres::CostFunction {
 
     const Eigen::Matrix3Xd Q = P_.colwise() - t;  // p - t
     const Eigen::Matrix3Xd L = Rt * Q;            // local coordinates
-    const double eps = 1e-18;
-    const double ie1 = 1.0 / e1, ie2 = 1.0 / e2;
+    // The powers in single precision: four lanes per SSE register instead of two. Its relative
+    // error of ~1e-7 is ~10 nm on a fruit's radius, far below the surface noise.
+    using ArrayXf = Eigen::ArrayXf;
+    const float eps = 1e-18f;
+    const float ie1 = static_cast<float>(1.0 / e1), ie2 = static_cast<float>(1.0 / e2);
+    const float e1f = static_cast<float>(e1), e2f = static_cast<float>(e2);
     // Column arrays (never mix Eigen row and column vectors in one coefficient-wise expression).
-    const ArrayXd Lx = L.row(0).transpose().array();
-    const ArrayXd Ly = L.row(1).transpose().array();
-    const ArrayXd Lz = L.row(2).transpose().array();
-    const ArrayXd x2 = Lx.square() + eps;
-    const ArrayXd y2 = Ly.square() + eps;
-    const ArrayXd z2 = Lz.square() + eps;
-    const ArrayXd lx = x2.log() - std::log(a * a);
-    const ArrayXd ly = y2.log() - std::log(b * b);
-    const ArrayXd lz = z2.log() - std::log(c * c);
-    const ArrayXd X = (lx * ie2).exp(), Y = (ly * ie2).exp(), Z = (lz * ie1).exp();
-    const ArrayXd g = X + Y;
-    const ArrayXd lg = g.log();
-    const ArrayXd G = (lg * (e2 * ie1)).exp();
-    const ArrayXd F = G + Z;
-    const ArrayXd lF = F.log();
-    const ArrayXd s = (lF * (-0.5 * e1)).exp();
-    const ArrayXd r = (x2 + y2 + z2).sqrt();
+    const ArrayXf Lx = L.row(0).transpose().array().cast<float>();
+    const ArrayXf Ly = L.row(1).transpose().array().cast<float>();
+    const ArrayXf Lz = L.row(2).transpose().array().cast<float>();
+    const ArrayXf x2 = Lx.square() + eps;
+    const ArrayXf y2 = Ly.square() + eps;
+    const ArrayXf z2 = Lz.square() + eps;
+    const ArrayXf lx = x2.log() - static_cast<float>(std::log(a * a));
+    const ArrayXf ly = y2.log() - static_cast<float>(std::log(b * b));
+    const ArrayXf lz = z2.log() - static_cast<float>(std::log(c * c));
+    const ArrayXf X = (lx * ie2).exp(), Y = (ly * ie2).exp(), Z = (lz * ie1).exp();
+    const ArrayXf g = X + Y;
+    const ArrayXf lg = g.log();
+    const ArrayXf G = (lg * (e2f * ie1)).exp();
+    const ArrayXf F = G + Z;
+    const ArrayXf lF = F.log();
+    const ArrayXf s = (lF * (-0.5f * e1f)).exp();
+    const ArrayXf r = (x2 + y2 + z2).sqrt();
     const Eigen::Index n = P_.cols();
-    Eigen::Map<ArrayXd>(residuals, n) = r * (1.0 - s);
+    Eigen::Map<Eigen::ArrayXd>(residuals, n) = (r * (1.0f - s)).cast<double>();
     if (jacobians == nullptr) return true;
 
-    const ArrayXd dGdg = (e2 * ie1) * G / g;
-    const ArrayXd k = 0.5 * e1 * r * s / F;  // -r * ds/dF
+    const ArrayXf dGdg = (e2f * ie1) * G / g;
+    const ArrayXf k = 0.5f * e1f * r * s / F;  // -r * ds/dF
     // d residual / d local
     Eigen::Matrix3Xd DL(3, n);
-    const ArrayXd radial = (1.0 - s) / r;
-    DL.row(0) = (Lx * (radial + k * dGdg * (2.0 * ie2) * X / x2)).matrix().transpose();
-    DL.row(1) = (Ly * (radial + k * dGdg * (2.0 * ie2) * Y / y2)).matrix().transpose();
-    DL.row(2) = (Lz * (radial + k * (2.0 * ie1) * Z / z2)).matrix().transpose();
+    const ArrayXf radial = (1.0f - s) / r;
+    DL.row(0) = (Lx * (radial + k * dGdg * (2.0f * ie2) * X / x2)).cast<double>().matrix().transpose();
+    DL.row(1) = (Ly * (radial + k * dGdg * (2.0f * ie2) * Y / y2)).cast<double>().matrix().transpose();
+    DL.row(2) = (Lz * (radial + k * (2.0f * ie1) * Z / z2)).cast<double>().matrix().transpose();
     using RowMajorX = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     if (jacobians[0]) {
       Eigen::Map<RowMajorX> J(jacobians[0], n, 5);
-      J.col(0) = (k * dGdg * (-2.0 * ie2 / a) * X).matrix();
-      J.col(1) = (k * dGdg * (-2.0 * ie2 / b) * Y).matrix();
-      J.col(2) = (k * (-2.0 * ie1 / c) * Z).matrix();
+      const float af = static_cast<float>(a), bf = static_cast<float>(b), cf = static_cast<float>(c);
+      J.col(0) = (k * dGdg * (-2.0f * ie2 / af) * X).cast<double>().matrix();
+      J.col(1) = (k * dGdg * (-2.0f * ie2 / bf) * Y).cast<double>().matrix();
+      J.col(2) = (k * (-2.0f * ie1 / cf) * Z).cast<double>().matrix();
       // e1 enters G's exponent, Z's exponent and the exponent of s itself.
-      J.col(3) = (k * (-(G * lg) * (e2 * ie1 * ie1) - (Z * lz) * (ie1 * ie1)) +
-                  0.5 * r * s * lF).matrix();
+      J.col(3) = (k * (-(G * lg) * (e2f * ie1 * ie1) - (Z * lz) * (ie1 * ie1)) + 0.5f * r * s * lF)
+                     .cast<double>()
+                     .matrix();
       // e2 enters G's exponent and X, Y.
-      J.col(4) = (k * ((G * lg) * ie1 - dGdg * (X * lx + Y * ly) * (ie2 * ie2))).matrix();
+      J.col(4) = (k * ((G * lg) * ie1 - dGdg * (X * lx + Y * ly) * (ie2 * ie2))).cast<double>().matrix();
     }
     if (jacobians[1]) {  // d local / d t = -R^T
       Eigen::Map<RowMajorX> J(jacobians[1], n, 3);
