@@ -189,6 +189,7 @@ void FitParams::validate() const {
   if (max_iterations < 1) fail("max_iterations must be >= 1");
   if (max_points != 0 && max_points < 11) fail("max_points must be 0 (all) or >= 11");
   if (!(function_tolerance > 0.0 && function_tolerance < 1.0)) fail("function_tolerance must be in (0, 1)");
+  if (!(stall_tolerance >= 0.0 && stall_tolerance < 1.0)) fail("stall_tolerance must be in [0, 1)");
   if (!(max_rms > 0.0)) fail("max_rms must be > 0");
 }
 
@@ -265,6 +266,28 @@ std::vector<int> coordinatesOnBounds(const double shape[5], const FitParams& par
   return on;
 }
 
+// Ends a solve whose cost fell by less than `tolerance` (relative) over the last kWindow
+// accepted steps (FitParams::stall_tolerance). A per-step tolerance that loose would also stop
+// on a single small step early on.
+class StallStop : public ceres::IterationCallback {
+ public:
+  explicit StallStop(double tolerance) : tolerance_(tolerance) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    if (!(tolerance_ > 0.0) || !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
+    costs_.push_back(summary.cost);
+    if (costs_.size() <= kWindow) return ceres::SOLVER_CONTINUE;
+    const double before = costs_[costs_.size() - 1 - kWindow];
+    return before - summary.cost < tolerance_ * summary.cost ? ceres::SOLVER_TERMINATE_SUCCESSFULLY
+                                                             : ceres::SOLVER_CONTINUE;
+  }
+  void reset() { costs_.clear(); }
+
+ private:
+  static constexpr std::size_t kWindow = 5;
+  double tolerance_;
+  std::vector<double> costs_;
+};
+
 // One Levenberg-Marquardt run from `sol`'s parameters, which it overwrites.
 void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior,
            const FitParams& params, Solution& sol) {
@@ -287,17 +310,20 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;
+  StallStop stall(params.stall_tolerance);
+  options.callbacks.push_back(&stall);
   int budget = params.max_iterations;
   sol.iterations = 0;
   auto run = [&](int max_iterations) {
     options.max_num_iterations = std::max(1, max_iterations);
     ceres::Solver::Summary summary;
+    stall.reset();
     ceres::Solve(options, &problem, &summary);
     const int done = std::max(0, static_cast<int>(summary.iterations.size()) - 1);
     sol.iterations += done;
     budget -= std::max(1, done);
     sol.cost = summary.final_cost;
-    sol.converged = summary.termination_type == ceres::CONVERGENCE;
+    sol.converged = summary.termination_type == ceres::CONVERGENCE || summary.termination_type == ceres::USER_SUCCESS;
     sol.message = summary.message;
   };
   // Holds `held` (shape coordinates) constant; none: all free again.

@@ -115,6 +115,7 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("max_iterations", p.pipeline.fit.max_iterations);
   read("max_fit_points", p.pipeline.fit.max_points);
   read("fit_function_tolerance", p.pipeline.fit.function_tolerance);
+  read("fit_stall_tolerance", p.pipeline.fit.stall_tolerance);
   read("max_rms", p.pipeline.fit.max_rms);
   read("missing_surface_samples", p.pipeline.missing.samples);
   read("missing_surface_threshold", p.pipeline.missing.threshold);
