@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -79,16 +80,26 @@ class FruitShapePipeline {
   };
   using Parts = std::vector<std::pair<PointList, FruitEstimate>>;
 
-  FruitEstimate estimateCluster(const PointList& points, int id, const Track* previous);
+  // The points' surface normals (estimateNormals, oriented toward their centroid).
+  std::vector<Eigen::Vector3d> normalsOf(const PointList& points);
+  // One fit of a cluster (or part) with its points' normals.
+  FruitEstimate estimateCluster(const PointList& points, const std::vector<Eigen::Vector3d>& normals, int id,
+                                const Track* previous);
   // The cluster as one fruit, or, if no superellipsoid fits it, split into parts that fit.
   // `cells`: the points' occupied 1 cm cells if the caller has them.
-  Parts estimateWithSplit(const PointList& points, int depth, const std::unordered_set<std::uint64_t>* cells = nullptr);
+  // `fitted_whole`: the cluster's whole fit if the caller has it.
+  Parts estimateWithSplit(const PointList& points, const std::vector<Eigen::Vector3d>& normals, int depth,
+                          const std::unordered_set<std::uint64_t>* cells = nullptr,
+                          const FruitEstimate* fitted_whole = nullptr);
   // A changed cluster that covers exactly the parts of one earlier split, all accepted: its
   // points go to the part whose fit explains them better, and each part keeps its fit (see
-  // refit_tolerance) or is refitted from it. Empty if the cluster is not such a one, has grown
-  // too much since the split was decided, or a part no longer fits: the full split runs then.
+  // refit_tolerance) or is refitted from it. Once the cluster has grown by a quarter since the
+  // split was decided, the whole cluster is fitted first and kept if it fits (a merge). Empty if
+  // the cluster is not such a one or a part no longer fits: the full split runs then.
+  // The cluster's normals and whole fit, if computed on the way, go to `normals` and `whole`.
   std::vector<Track> splitAsBefore(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
-                                   const std::vector<char>& reused);
+                                   const std::vector<char>& reused, std::vector<Eigen::Vector3d>* normals,
+                                   std::optional<FruitEstimate>* whole);
   // Whether `fit`, made on `fitted_points` points, still explains `points` (refit_tolerance).
   bool stillFits(const FruitEstimate& fit, std::size_t fitted_points, const PointList& points) const;
   // `fit` for the cluster (part) `points`: described anew, unseen surface recomputed.

@@ -241,7 +241,9 @@ TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) 
   for (const auto* t : {&a, &b}) {
     const FruitEstimate* f = nearest(fruits, t->t);
     ASSERT_TRUE(f->accepted) << f->reason;
-    EXPECT_LT((f->center() - t->t).norm(), 0.006);  // a few scattered points stay with it
+    // A few scattered points stay with it (6.0 mm off since the parts keep the whole cluster's
+    // normals; a fruit merged with the scatter would be centimetres off).
+    EXPECT_LT((f->center() - t->t).norm(), 0.0065);
     EXPECT_NEAR(f->volume, t->volume(), 0.1 * t->volume());
   }
   EXPECT_GE(pipeline.lastStats().splits, 1);
@@ -284,6 +286,11 @@ TEST(FruitShapePipeline, TouchingFruitsSplitBeforeAreSplitAgainAlongTheirFits) {
   std::vector<int> before = {first_ids[0], first_ids[1]};
   std::sort(before.begin(), before.end());
   EXPECT_EQ(ids, before);
+  // Seen all round (a third more points than when the split was decided): the whole cluster is
+  // fitted first (a merge check), then the parts along their fits.
+  check(pipeline.update(view(1.0, 3)));
+  EXPECT_EQ(pipeline.lastStats().splits, 1);
+  EXPECT_LE(pipeline.lastStats().fitted, 3);
   // Without the tolerance the same change runs the full split.
   PipelineParams strict;
   strict.refit_tolerance = 0.0;

@@ -97,8 +97,17 @@ void FruitShapePipeline::reset() {
   next_id_ = 0;
 }
 
-FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int id,
-                                                  const Track* previous) {
+std::vector<Eigen::Vector3d> FruitShapePipeline::normalsOf(const PointList& points) {
+  const auto start = std::chrono::steady_clock::now();
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& p : points) centroid += p / static_cast<double>(points.size());
+  std::vector<Eigen::Vector3d> normals = estimateNormals(points, params_.normals, centroid).normals;
+  stats_.prior_seconds += secondsSince(start);
+  return normals;
+}
+
+FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
+                                                  int id, const Track* previous) {
   FruitEstimate est;
   est.id = id;
   est.refitted = true;
@@ -106,13 +115,12 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, int i
   est.shape.t = est.points_centroid;
 
   const auto prior_start = std::chrono::steady_clock::now();
-  const SurfaceNormals normals = estimateNormals(points, params_.normals, est.points_centroid);
-  const ClusterShapeCheck check = checkClusterShape(points, normals.normals);
+  const ClusterShapeCheck check = checkClusterShape(points, normals);
   if (!check.ok) {
     est.reason = check.reason;
     return est;
   }
-  est.center_prior = estimateFruitCenter(points, normals.normals, params_.center_lambda);
+  est.center_prior = estimateFruitCenter(points, normals, params_.center_lambda);
   stats_.prior_seconds += secondsSince(prior_start);
   const Superellipsoid* warm =
       previous != nullptr && previous->estimate.accepted ? &previous->estimate.shape : nullptr;
@@ -186,7 +194,8 @@ FruitEstimate FruitShapePipeline::keptEstimate(const FruitEstimate& fit, const P
 }
 
 std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
-    const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused) {
+    const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused,
+    std::vector<Eigen::Vector3d>* normals_out, std::optional<FruitEstimate>* whole_out) {
   // The previous fruits the cluster shares cells with: all parts of one split, all accepted.
   std::vector<int> parts;
   for (std::size_t k = 0; k < tracks_.size(); ++k)
@@ -197,12 +206,7 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
       }
   if (parts.size() < 2) return {};
   const Track& first = tracks_[parts.front()];
-  // The full split (whole fit first) runs again once the cluster has grown this much since the
-  // split was decided, so that fruits split in error can merge when more of them is seen.
-  constexpr double kSplitRecheckGrowth = 0.25;
-  if (first.split_points == 0 ||
-      static_cast<double>(points.size()) > (1.0 + kSplitRecheckGrowth) * static_cast<double>(first.split_points))
-    return {};
+  if (first.split_points == 0) return {};
   std::size_t same_split = 0;
   for (const auto& t : tracks_)
     same_split += t.cluster_signature == first.cluster_signature && t.cluster_points == first.cluster_points;
@@ -213,12 +217,31 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
         t.cluster_signature != first.cluster_signature || t.cluster_points != first.cluster_points)
       return {};
   }
+  std::vector<Eigen::Vector3d>& normals = *normals_out;  // of the whole cluster, once a fit needs them
+  // Once the cluster has grown this much since the split was decided, the whole cluster is
+  // fitted again first, so that a fruit split in error merges when more of it is seen.
+  constexpr double kSplitRecheckGrowth = 0.25;
+  const bool recheck =
+      static_cast<double>(points.size()) > (1.0 + kSplitRecheckGrowth) * static_cast<double>(first.split_points);
+  if (recheck) {
+    normals = normalsOf(points);
+    *whole_out = estimateCluster(points, normals, -1, &tracks_[static_cast<std::size_t>(bestOverlap(cells))]);
+    ++stats_.fitted;
+    if ((*whole_out)->accepted) {
+      Track whole;
+      whole.estimate = **whole_out;
+      whole.fitted_points = points.size();
+      whole.cells = cells;
+      return {whole};
+    }
+  }
   // Each point to the part whose fit explains it better.
   std::vector<Eigen::VectorXd> distance;
   for (int k : parts) distance.push_back(radialDistances(points, tracks_[k].estimate.shape));
+  std::vector<std::size_t> label(points.size(), 0);
   std::vector<PointList> part_points(parts.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
-    std::size_t best = 0;
+    std::size_t& best = label[i];
     for (std::size_t j = 1; j < parts.size(); ++j)
       if (distance[j][static_cast<Eigen::Index>(i)] < distance[best][static_cast<Eigen::Index>(i)]) best = j;
     part_points[best].push_back(points[i]);
@@ -230,14 +253,18 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     const PointList& pts = part_points[j];
     if (static_cast<int>(pts.size()) < params_.clustering.min_size) return {};
     Track t;
-    t.split_points = previous.split_points;
+    t.split_points = recheck ? points.size() : previous.split_points;
     t.cells = occupiedCells(pts);
     if (stillFits(previous.estimate, previous.fitted_points, pts)) {
       t.estimate = keptEstimate(previous.estimate, pts);
       t.fitted_points = previous.fitted_points;
       ++kept;
     } else {
-      t.estimate = estimateCluster(pts, -1, &previous);
+      if (normals.empty()) normals = normalsOf(points);
+      std::vector<Eigen::Vector3d> part_normals;
+      for (std::size_t i = 0; i < points.size(); ++i)
+        if (label[i] == j) part_normals.push_back(normals[i]);
+      t.estimate = estimateCluster(pts, part_normals, -1, &previous);
       ++stats_.fitted;
       if (!t.estimate.accepted) return {};
       t.fitted_points = pts.size();
@@ -249,11 +276,18 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
   return out;
 }
 
-FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(
-    const PointList& points, int depth, const std::unordered_set<std::uint64_t>* cells) {
-  const int warm = bestOverlap(cells ? *cells : occupiedCells(points));
-  FruitEstimate whole = estimateCluster(points, -1, warm >= 0 ? &tracks_[warm] : nullptr);
-  ++stats_.fitted;
+FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList& points,
+                                                                const std::vector<Eigen::Vector3d>& normals, int depth,
+                                                                const std::unordered_set<std::uint64_t>* cells,
+                                                                const FruitEstimate* fitted_whole) {
+  FruitEstimate whole;
+  if (fitted_whole != nullptr) {
+    whole = *fitted_whole;
+  } else {
+    const int warm = bestOverlap(cells ? *cells : occupiedCells(points));
+    whole = estimateCluster(points, normals, -1, warm >= 0 ? &tracks_[warm] : nullptr);
+    ++stats_.fitted;
+  }
   Parts out;
   const int min_part = params_.clustering.min_size;
   // Touching fruits end up in one cluster, which no single superellipsoid fits: split it in
@@ -284,10 +318,17 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(
     c[0] = sum[0] / n[0];
     c[1] = sum[1] / n[1];
   }
+  // The parts keep the whole cluster's normals: computed once, from the fuller neighbourhoods.
+  std::vector<Eigen::Vector3d> part_normals[2];
   auto partition = [&](PointList part[2]) {
-    part[0].clear();
-    part[1].clear();
-    for (std::size_t i = 0; i < points.size(); ++i) part[label[i]].push_back(points[i]);
+    for (int k = 0; k < 2; ++k) {
+      part[k].clear();
+      part_normals[k].clear();
+    }
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      part[label[i]].push_back(points[i]);
+      part_normals[label[i]].push_back(normals[i]);
+    }
     return static_cast<int>(part[0].size()) >= min_part && static_cast<int>(part[1].size()) >= min_part;
   };
   PointList part[2];
@@ -301,8 +342,8 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(
     const int k = bestOverlap(occupiedCells(half));
     return k >= 0 ? &tracks_[k] : nullptr;
   };
-  FruitEstimate first[2] = {estimateCluster(part[0], -1, previousOf(part[0])),
-                            estimateCluster(part[1], -1, previousOf(part[1]))};
+  FruitEstimate first[2] = {estimateCluster(part[0], part_normals[0], -1, previousOf(part[0])),
+                            estimateCluster(part[1], part_normals[1], -1, previousOf(part[1]))};
   stats_.fitted += 2;
   const std::size_t half_points[2] = {part[0].size(), part[1].size()};
   if (first[0].converged && first[1].converged) {
@@ -322,7 +363,7 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(
       parts.back().second.refitted = true;
       continue;
     }
-    auto sub = estimateWithSplit(part[k], depth + 1);
+    auto sub = estimateWithSplit(part[k], part_normals[k], depth + 1);
     parts.insert(parts.end(), sub.begin(), sub.end());
   }
   // Keep the split if any part fits: of three merged fruits, the two that fit are found even
@@ -390,7 +431,10 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       ++stats_.kept;
       continue;
     }
-    std::vector<Track> again = params_.refit_tolerance > 0.0 ? splitAsBefore(pts, cells, reused) : std::vector<Track>();
+    std::vector<Eigen::Vector3d> normals;
+    std::optional<FruitEstimate> whole;  // fitted on the way, if so
+    std::vector<Track> again =
+        params_.refit_tolerance > 0.0 ? splitAsBefore(pts, cells, reused, &normals, &whole) : std::vector<Track>();
     if (!again.empty()) {
       for (auto& t : again) {
         t.cluster_signature = signature;
@@ -399,7 +443,8 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       }
       continue;
     }
-    Parts parts = estimateWithSplit(pts, 0, &cells);
+    if (normals.empty()) normals = normalsOf(pts);
+    Parts parts = estimateWithSplit(pts, normals, 0, &cells, whole ? &*whole : nullptr);
     for (auto& part : parts) {
       Track t;
       t.estimate = std::move(part.second);
