@@ -102,8 +102,10 @@ class FruitShapePipeline {
                                    std::optional<FruitEstimate>* whole);
   // Whether `fit`, made on `fitted_points` points, still explains `points` (refit_tolerance).
   bool stillFits(const FruitEstimate& fit, std::size_t fitted_points, const PointList& points) const;
-  // `fit` for the cluster (part) `points`: described anew, unseen surface recomputed.
+  // `fit` for the cluster (part) `points`, described anew.
   FruitEstimate keptEstimate(const FruitEstimate& fit, const PointList& points);
+  // The predicted unseen surface of an accepted fruit (none otherwise).
+  void predictMissing(FruitEstimate* estimate);
   int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
   // The previous fruit the changed cluster's points still fit (see refit_tolerance), or -1.
   int stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,

@@ -134,11 +134,6 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const
   est.fit_seconds = fit.seconds;
   stats_.fit_seconds += fit.seconds;
   est.volume = fit.shape.volume();
-  if (est.accepted && params_.missing.samples > 0) {
-    const auto missing_start = std::chrono::steady_clock::now();
-    est.missing_surface = predictMissingSurface(est.shape, points, params_.missing);
-    stats_.missing_seconds += secondsSince(missing_start);
-  }
   return est;
 }
 
@@ -184,13 +179,16 @@ bool FruitShapePipeline::stillFits(const FruitEstimate& fit, std::size_t fitted_
 FruitEstimate FruitShapePipeline::keptEstimate(const FruitEstimate& fit, const PointList& points) {
   FruitEstimate e = fit;
   describeCluster(points, &e);
-  if (params_.missing.samples > 0) {
-    const auto missing_start = std::chrono::steady_clock::now();
-    e.missing_surface = predictMissingSurface(e.shape, points, params_.missing);
-    stats_.missing_seconds += secondsSince(missing_start);
-  }
   e.refitted = false;
   return e;
+}
+
+void FruitShapePipeline::predictMissing(FruitEstimate* e) {
+  e->missing_surface.clear();
+  if (!e->accepted || params_.missing.samples <= 0) return;
+  const auto start = std::chrono::steady_clock::now();
+  e->missing_surface = predictMissingSurface(e->shape, e->points, params_.missing);
+  stats_.missing_seconds += secondsSince(start);
 }
 
 std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
@@ -427,6 +425,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       t.cluster_points = pts.size();
       t.cells = cells;
       t.split_points = 0;  // a cluster of its own now
+      predictMissing(&t.estimate);
       next.push_back(std::move(t));
       ++stats_.kept;
       continue;
@@ -456,6 +455,9 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       pending.push_back(std::move(t));
     }
   }
+
+  // Unseen surfaces of the final fruits only (not of trial fits).
+  for (auto& t : pending) predictMissing(&t.estimate);
 
   // Ids: fitted fruits inherit the id of the previous fruit they share most 1 cm cells with,
   // largest overlap first, one to one; the rest get new ids.
