@@ -55,6 +55,9 @@ struct TsdfBlock {
   std::size_t voxelCount() const { return static_cast<std::size_t>(side) * side * side; }
   // One bit per voxel, set once it has weight > 0: readers walk only the observed voxels.
   std::vector<std::uint64_t> observed_bits;
+  // The map's change count when the block was last handed out for an update: a reader that
+  // remembers it knows whether the block may have changed since.
+  std::uint64_t revision = 0;
 
   std::uint32_t indexOf(int x, int y, int z) const { return static_cast<std::uint32_t>(x + side * (y + side * z)); }
   Eigen::Vector3i coordsOf(std::uint32_t idx) const {
@@ -114,6 +117,10 @@ class TsdfMap {
   std::size_t memoryBytes() const;
   void clear();
 
+  // Differs between maps and changes when the map is cleared or loaded: block revisions are
+  // comparable only within one epoch.
+  std::uint64_t epoch() const { return epoch_; }
+
   template <typename Fn>  // fn(const TsdfBlock&), in the order of their keys
   void forEachBlock(Fn&& fn) const {
     for (const auto& kb : blocks_) fn(*kb.second);
@@ -136,6 +143,8 @@ class TsdfMap {
   // Rays touch the same block many times in a row: the last block updated is kept.
   VoxelIndex cached_origin_ = VoxelIndex::Zero();
   TsdfBlock* cached_block_ = nullptr;
+  std::uint64_t epoch_;
+  std::uint64_t revision_ = 0;
 };
 
 }  // namespace fruit_shape_completion

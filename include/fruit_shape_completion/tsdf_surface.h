@@ -2,7 +2,9 @@
 // The fruit surface of a TsdfMap: a point cloud for the fitter, a triangle mesh for display.
 #include <fruit_shape_completion/tsdf_map.h>
 
+#include <cstdint>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -18,6 +20,27 @@ struct SurfaceExtractionParams {
 };
 
 PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams& params = {});
+
+// The same points, extracted again only from the blocks that changed since the last call (and,
+// with project_to_zero_crossing, their neighbours): each view touches a few blocks of a map.
+// The output equals extractSurfacePoints' (same order). Not thread-safe; the caller holds the
+// map's lock.
+class IncrementalSurfaceExtractor {
+ public:
+  explicit IncrementalSurfaceExtractor(const SurfaceExtractionParams& params = {}) : params_(params) {}
+  PointList extract(const TsdfMap& map);
+  std::size_t lastBlocksExtracted() const { return last_extracted_; }
+
+ private:
+  struct CachedBlock {
+    std::uint64_t revision = 0;
+    PointList points;
+  };
+  SurfaceExtractionParams params_;
+  std::uint64_t epoch_ = 0;
+  std::unordered_map<std::uint64_t, CachedBlock> blocks_;  // by block coordinates (packCellKey)
+  std::size_t last_extracted_ = 0;
+};
 
 struct TriangleMesh {
   std::vector<Eigen::Vector3f> vertices;

@@ -80,6 +80,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   FruitShapePipeline pipeline_;
   mutable std::mutex map_mutex_;  // guards the members below up to results_mutex_
   TsdfMap map_;
+  IncrementalSurfaceExtractor surface_extractor_;
   TsdfIntegrator integrator_;
   IntegrationReport last_;
   FruitInput last_input_;

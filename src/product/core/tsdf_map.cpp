@@ -2,6 +2,7 @@
 #include <fruit_shape_completion/atomic_file.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <new>
@@ -48,7 +49,14 @@ std::size_t TsdfMapParams::maxBlocks() const {
   return static_cast<std::size_t>(std::min(1e12, memory_budget_mb * 1048576.0 / static_cast<double>(blockBytes())));
 }
 
-TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params) {
+namespace {
+std::uint64_t nextEpoch() {
+  static std::atomic<std::uint64_t> epochs{0};
+  return ++epochs;
+}
+}  // namespace
+
+TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params), epoch_(nextEpoch()) {
   params_.validate();
   max_blocks_ = params_.maxBlocks();
 }
@@ -100,7 +108,10 @@ bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
 }
 
 TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
-  if (cached_block_ != nullptr && origin == cached_origin_) return cached_block_;
+  if (cached_block_ != nullptr && origin == cached_origin_) {
+    cached_block_->revision = ++revision_;
+    return cached_block_;
+  }
   if (!blockInRange(origin)) return nullptr;
   const std::uint64_t key = blockKeyOf(origin);
   auto it = blocks_.find(key);
@@ -117,6 +128,7 @@ TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
   }
   cached_origin_ = origin;
   cached_block_ = it->second.get();
+  cached_block_->revision = ++revision_;
   return cached_block_;
 }
 
@@ -149,6 +161,7 @@ std::size_t TsdfMap::memoryBytes() const {
 void TsdfMap::clear() {
   blocks_.clear();
   cached_block_ = nullptr;
+  epoch_ = nextEpoch();
 }
 
 void TsdfMap::serialize(std::string* bytes) const {
@@ -239,6 +252,8 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
     blocks_.swap(loaded.blocks_);
     params_ = p;  // the file's block side may differ from the map's
     cached_block_ = nullptr;
+    epoch_ = nextEpoch();
+    revision_ = loaded.revision_;
     return true;
   } catch (const std::bad_alloc&) {
     return fail("out of memory while loading; the map in memory is unchanged");

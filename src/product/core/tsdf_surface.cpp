@@ -22,41 +22,88 @@ struct BlockView {
 
 bool usable(const TsdfVoxel* v, double min_weight) { return v != nullptr && v->weight >= min_weight; }
 
+// The surface points of one block, appended to `out`.
+void appendBlockSurface(const TsdfMap& map, const TsdfBlock& block, const SurfaceExtractionParams& params,
+                        PointList* out) {
+  const double vs = map.voxelSize();
+  const float max_d = static_cast<float>(params.max_distance_voxels * vs);
+  const BlockView view{map, block, map.voxelsPerSide()};
+  block.forEachObserved([&](std::uint32_t idx) {
+    const TsdfVoxel& v = block.voxels[idx];
+    if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) return;
+    const Eigen::Vector3i l = block.coordsOf(idx);
+    const int lx = l.x(), ly = l.y(), lz = l.z();
+    Eigen::Vector3d c = map.voxelCenter(block.origin + VoxelIndex(lx, ly, lz));
+    if (params.project_to_zero_crossing) {
+      Eigen::Vector3d g;
+      bool ok = true;
+      for (int k = 0; k < 3 && ok; ++k) {
+        const int dx = k == 0, dy = k == 1, dz = k == 2;
+        const TsdfVoxel* plus = view.at(lx + dx, ly + dy, lz + dz);
+        const TsdfVoxel* minus = view.at(lx - dx, ly - dy, lz - dz);
+        const bool p = usable(plus, params.min_weight), m = usable(minus, params.min_weight);
+        if (p && m) g[k] = (plus->distance - minus->distance) / (2.0 * vs);
+        else if (p) g[k] = (plus->distance - v.distance) / vs;
+        else if (m) g[k] = (v.distance - minus->distance) / vs;
+        else ok = false;
+      }
+      const double gn = g.norm();
+      // A distance field has |gradient| ~ 1; far from that the neighbourhood is unreliable.
+      if (ok && gn > 0.5 && gn < 2.0) c -= (v.distance / gn) * (g / gn);
+    }
+    out->push_back(c);
+  });
+}
+
+GridCell blockCoordsOf(const TsdfMap& map, const TsdfBlock& block) { return block.origin / map.voxelsPerSide(); }
+
 }  // namespace
 
 PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams& params) {
   PointList out;
-  const double vs = map.voxelSize();
-  const float max_d = static_cast<float>(params.max_distance_voxels * vs);
-  const int n = map.voxelsPerSide();
+  map.forEachBlock([&](const TsdfBlock& block) { appendBlockSurface(map, block, params, &out); });
+  return out;
+}
+
+PointList IncrementalSurfaceExtractor::extract(const TsdfMap& map) {
+  if (map.epoch() != epoch_) {
+    blocks_.clear();
+    epoch_ = map.epoch();
+  }
+  // The blocks whose voxels may have changed; with projection, a surface point also reads the
+  // voxels next to it, so a changed block's neighbours are extracted again too.
+  std::unordered_map<std::uint64_t, char> changed;
   map.forEachBlock([&](const TsdfBlock& block) {
-    const BlockView view{map, block, n};
-    block.forEachObserved([&](std::uint32_t idx) {
-      const TsdfVoxel& v = block.voxels[idx];
-      if (v.weight < params.min_weight || std::abs(v.distance) >= max_d) return;
-      const Eigen::Vector3i l = block.coordsOf(idx);
-      const int lx = l.x(), ly = l.y(), lz = l.z();
-      Eigen::Vector3d c = map.voxelCenter(block.origin + VoxelIndex(lx, ly, lz));
-      if (params.project_to_zero_crossing) {
-        Eigen::Vector3d g;
-        bool ok = true;
-        for (int k = 0; k < 3 && ok; ++k) {
-          const int dx = k == 0, dy = k == 1, dz = k == 2;
-          const TsdfVoxel* plus = view.at(lx + dx, ly + dy, lz + dz);
-          const TsdfVoxel* minus = view.at(lx - dx, ly - dy, lz - dz);
-          const bool p = usable(plus, params.min_weight), m = usable(minus, params.min_weight);
-          if (p && m) g[k] = (plus->distance - minus->distance) / (2.0 * vs);
-          else if (p) g[k] = (plus->distance - v.distance) / vs;
-          else if (m) g[k] = (v.distance - minus->distance) / vs;
-          else ok = false;
-        }
-        const double gn = g.norm();
-        // A distance field has |gradient| ~ 1; far from that the neighbourhood is unreliable.
-        if (ok && gn > 0.5 && gn < 2.0) c -= (v.distance / gn) * (g / gn);
-      }
-      out.push_back(c);
-    });
+    const GridCell b = blockCoordsOf(map, block);
+    const auto it = blocks_.find(packCellKey(b));
+    if (it != blocks_.end() && it->second.revision == block.revision) return;
+    if (!params_.project_to_zero_crossing) {
+      changed[packCellKey(b)] = 1;
+      return;
+    }
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) changed[packCellKey(b + GridCell(dx, dy, dz))] = 1;
   });
+  std::unordered_map<std::uint64_t, CachedBlock> next;
+  next.reserve(map.blockCount());
+  PointList out;
+  last_extracted_ = 0;
+  map.forEachBlock([&](const TsdfBlock& block) {
+    const std::uint64_t key = packCellKey(blockCoordsOf(map, block));
+    CachedBlock entry;
+    const auto it = blocks_.find(key);
+    if (it != blocks_.end() && !changed.count(key)) {
+      entry = std::move(it->second);
+    } else {
+      appendBlockSurface(map, block, params_, &entry.points);
+      ++last_extracted_;
+    }
+    entry.revision = block.revision;
+    out.insert(out.end(), entry.points.begin(), entry.points.end());
+    next.emplace(key, std::move(entry));
+  });
+  blocks_.swap(next);  // blocks no longer in the map are dropped
   return out;
 }
 

@@ -9,7 +9,7 @@ namespace host {
 
 SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)
     : params_(params), input_stage_(params.input), pipeline_(params.pipeline), map_(params.map),
-      integrator_(params.integrator) {}
+      surface_extractor_(params.surface), integrator_(params.integrator) {}
 
 namespace {
 
@@ -86,7 +86,7 @@ void SuperellipsoidEstimator::update() {
     std::lock_guard<std::mutex> lock(map_mutex_);
     if (!dirty_) return;
     const auto start = std::chrono::steady_clock::now();
-    surface = extractSurfacePoints(map_, params_.surface);
+    surface = surface_extractor_.extract(map_);
     surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     dirty_ = false;
   }
