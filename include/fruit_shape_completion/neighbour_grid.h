@@ -27,17 +27,31 @@ class NeighbourGrid {
   void forEachPoint(double radius, Fn&& fn) const {
     const double r2 = radius * radius;
     Ranges ranges;
+    std::vector<int> hit;  // collected without a branch, as in forEachPairByPosition
+    std::vector<double> hit_d2;
     for (const auto& cell : cell_list_) {
       const int n = neighbourRanges(cell.first, &ranges);
+      std::size_t candidates = 0;
+      for (int r = 0; r < n; ++r) candidates += static_cast<std::size_t>(ranges[r].second - ranges[r].first);
+      if (hit.size() < candidates) {
+        hit.resize(candidates);
+        hit_d2.resize(candidates);
+      }
       for (int k = cell.second.first; k < cell.second.second; ++k) {
         const Point& p = sorted_[static_cast<std::size_t>(k)];
         fn(order_[static_cast<std::size_t>(k)], [&](auto&& visit) {
+          std::size_t count = 0;
           for (int r = 0; r < n; ++r)
             for (int m = ranges[r].first; m < ranges[r].second; ++m) {
-              const Point& q = sorted_[static_cast<std::size_t>(m)];
-              const double d2 = (q - p).squaredNorm();
-              if (d2 <= r2) visit(order_[static_cast<std::size_t>(m)], d2, q);
+              const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
+              hit[count] = m;
+              hit_d2[count] = d2;
+              count += d2 <= r2 ? 1 : 0;
             }
+          for (std::size_t h = 0; h < count; ++h) {
+            const auto m = static_cast<std::size_t>(hit[h]);
+            visit(order_[m], hit_d2[h], sorted_[m]);
+          }
         });
       }
     }
@@ -58,13 +72,33 @@ class NeighbourGrid {
   void forEachPairByPosition(double radius, Fn&& fn) const {
     const double r2 = radius * radius;
     Ranges ranges;
+    // All candidates of a point are measured first and the hits collected without a branch
+    // (whether a candidate lies within the radius is a coin toss a branch predictor loses), then
+    // visited.
+    std::vector<int> hit;
+    std::vector<double> hit_d2;
     for (const auto& cell : cell_list_) {
       const int n = forwardRanges(cell.first, &ranges);
+      std::size_t candidates = static_cast<std::size_t>(cell.second.second - cell.second.first);
+      for (int r = 0; r < n; ++r) candidates += static_cast<std::size_t>(ranges[r].second - ranges[r].first);
+      if (hit.size() < candidates) {
+        hit.resize(candidates);
+        hit_d2.resize(candidates);
+      }
       for (int k = cell.second.first; k < cell.second.second; ++k) {
         const Point& p = sorted_[static_cast<std::size_t>(k)];
-        for (int m = k + 1; m < cell.second.second; ++m) visitIfWithin(p, k, m, r2, fn);
-        for (int r = 0; r < n; ++r)
-          for (int m = ranges[r].first; m < ranges[r].second; ++m) visitIfWithin(p, k, m, r2, fn);
+        std::size_t count = 0;
+        auto test = [&](int begin, int end) {
+          for (int m = begin; m < end; ++m) {
+            const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
+            hit[count] = m;
+            hit_d2[count] = d2;
+            count += d2 <= r2 ? 1 : 0;
+          }
+        };
+        test(k + 1, cell.second.second);
+        for (int r = 0; r < n; ++r) test(ranges[r].first, ranges[r].second);
+        for (std::size_t h = 0; h < count; ++h) fn(k, hit[h], hit_d2[h]);
       }
     }
   }

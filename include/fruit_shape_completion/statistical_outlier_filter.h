@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -29,19 +30,15 @@ std::vector<char> findStatisticalOutliers(const PointList& points, const Outlier
 class NearestDistances {
  public:
   NearestDistances(std::size_t points, const OutlierFilterParams& params);
-  void add(std::size_t i, double d2) {  // keeps row i ascending, at most k long
-    double* row = &d2_[i * k_];
-    std::size_t n = count_[i];
-    if (n == k_) {
-      if (d2 >= row[k_ - 1]) return;
-      --n;
-    }
-    while (n > 0 && row[n - 1] > d2) {
-      row[n] = row[n - 1];
-      --n;
-    }
-    row[n] = d2;
-    count_[i] = std::min(count_[i] + 1, k_);
+  // Keeps row i the k smallest so far, ascending (padded with +inf). Without branches: element
+  // j becomes max(row[j-1], min(row[j], d2)), so the data-dependent exits of an insertion sort
+  // cannot be mispredicted.
+  void add(std::size_t i, double distance2) {
+    const float d2 = static_cast<float>(distance2);
+    float* row = &d2_[i * k_];
+    for (std::size_t j = k_ - 1; j > 0; --j) row[j] = std::max(row[j - 1], std::min(row[j], d2));
+    row[0] = std::min(row[0], d2);
+    count_[i] = std::min<std::uint32_t>(count_[i] + 1, static_cast<std::uint32_t>(k_));
   }
   // The mean distance to the k nearest, or search_radius for a point with fewer than k.
   double meanDistance(std::size_t i) const;
@@ -49,8 +46,8 @@ class NearestDistances {
  private:
   std::size_t k_;
   double search_radius_;
-  std::vector<double> d2_;
-  std::vector<std::size_t> count_;
+  std::vector<float> d2_;  // single precision: half the memory; a statistic needs no more
+  std::vector<std::uint32_t> count_;
 };
 // the flags from all statistics (NaN: a point that has none, flagged).
 std::vector<char> flagOutliers(const std::vector<double>& statistic, const OutlierFilterParams& params);

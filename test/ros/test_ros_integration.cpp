@@ -599,6 +599,10 @@ TEST(PlannerNode, HeadlessEpisodePublishesFruitsMatchingTheTruth) {
   for (const auto& f : truth) red += f.color == "red";
   ASSERT_TRUE(waitFor([&] { return static_cast<int>(last.superellipsoids.size()) >= red / 2; }, 180.0))
       << "only " << last.superellipsoids.size() << " superellipsoids published for " << red << " red fruits";
+  // The first fits of a fruit come from one or two views; judge them a few views later (under
+  // a loaded machine the first snapshot held two half-seen fruits below 0.8 accuracy).
+  waitFor([&] { return false; }, 5.0);
+  ASSERT_GE(static_cast<int>(last.superellipsoids.size()), red / 2);
   EXPECT_GT(markers, last.superellipsoids.size());  // a mesh and a label per fruit
   int good = 0;
   for (const auto& s : last.superellipsoids) {

@@ -17,7 +17,10 @@ void OutlierFilterParams::validate() const {
 }
 
 NearestDistances::NearestDistances(std::size_t points, const OutlierFilterParams& params)
-    : k_(static_cast<std::size_t>(params.k)), search_radius_(params.search_radius), d2_(points * k_), count_(points, 0) {}
+    : k_(static_cast<std::size_t>(params.k)),
+      search_radius_(params.search_radius),
+      d2_(points * k_, std::numeric_limits<float>::infinity()),
+      count_(points, 0) {}
 
 double NearestDistances::meanDistance(std::size_t i) const {
   if (count_[i] < k_) return search_radius_;
