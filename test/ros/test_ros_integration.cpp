@@ -29,6 +29,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <sstream>
 #include <fstream>
 #include <limits>
 
@@ -605,6 +606,7 @@ TEST(PlannerNode, HeadlessEpisodePublishesFruitsMatchingTheTruth) {
   ASSERT_GE(static_cast<int>(last.superellipsoids.size()), red / 2);
   EXPECT_GT(markers, last.superellipsoids.size());  // a mesh and a label per fruit
   int good = 0;
+  std::ostringstream report;
   for (const auto& s : last.superellipsoids) {
     double best = 1e9, acc = -1;
     for (const auto& f : truth) {
@@ -615,8 +617,9 @@ TEST(PlannerNode, HeadlessEpisodePublishesFruitsMatchingTheTruth) {
       }
     }
     good += best < 0.02 && acc > 0.8;
+    report << " [" << s.id << ": " << best * 100 << " cm, accuracy " << acc << "]";
   }
-  EXPECT_GE(good, static_cast<int>(0.8 * last.superellipsoids.size()));
+  EXPECT_GE(good, static_cast<int>(0.8 * last.superellipsoids.size())) << report.str();
 }
 
 int main(int argc, char** argv) {
