@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <utility>
 
 using namespace fruit_shape_completion;
 
@@ -20,6 +21,23 @@ PointList scan(const Superellipsoid& s, double seen, const Eigen::Vector3d& view
   p.view_dir = view;
   p.seed = seed;
   return scanFruit(SyntheticFruit::fromSuperellipsoid(s), p);
+}
+
+// Two 4 cm spheres whose surfaces are 5 mm apart (one Euclidean cluster), and their scan.
+std::pair<Superellipsoid, Superellipsoid> touchingPair() {
+  Superellipsoid a;
+  a.a = a.b = a.c = 0.04;
+  Superellipsoid b = a;
+  a.t = Eigen::Vector3d(0, 0, 0.5);
+  b.t = Eigen::Vector3d(0.085, 0, 0.5);
+  return {a, b};
+}
+PointList scanPair(const std::pair<Superellipsoid, Superellipsoid>& pair, double seen, unsigned seed_a,
+                   unsigned seed_b) {
+  PointList cloud = scan(pair.first, seen, Eigen::Vector3d(0, -1, 0.2), seed_a);
+  const PointList pb = scan(pair.second, seen, Eigen::Vector3d(0, -1, 0.2), seed_b);
+  cloud.insert(cloud.end(), pb.begin(), pb.end());
+  return cloud;
 }
 
 const FruitEstimate* nearest(const std::vector<FruitEstimate>& fruits, const Eigen::Vector3d& c) {
@@ -221,14 +239,9 @@ TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) 
   // Two touching fruits (surfaces 5 mm apart: one Euclidean cluster) and, touching the second,
   // a scatter of points no shape explains. Both fruits are found and the scatter stays
   // unaccepted; keeping only all-fitting splits lost all three.
-  Superellipsoid a, b;
-  a.a = a.b = a.c = 0.04;
-  b = a;
-  a.t = Eigen::Vector3d(0, 0, 0.5);
-  b.t = Eigen::Vector3d(0.085, 0, 0.5);
-  PointList cloud = scan(a, 1.0, Eigen::Vector3d(0, -1, 0.2), 1);
-  const PointList pb = scan(b, 1.0, Eigen::Vector3d(0, -1, 0.2), 2);
-  cloud.insert(cloud.end(), pb.begin(), pb.end());
+  const auto pair = touchingPair();
+  const Superellipsoid &a = pair.first, &b = pair.second;
+  PointList cloud = scanPair(pair, 1.0, 1, 2);
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int i = 0; i < 600; ++i)
@@ -251,17 +264,9 @@ TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) 
 
 TEST(FruitShapePipeline, TouchingFruitsSplitBeforeAreSplitAgainAlongTheirFits) {
   // Two touching fruits (one cluster) seen from one side, then again with more of them seen.
-  Superellipsoid a, b;
-  a.a = a.b = a.c = 0.04;
-  b = a;
-  a.t = Eigen::Vector3d(0, 0, 0.5);
-  b.t = Eigen::Vector3d(0.085, 0, 0.5);
-  auto view = [&](double seen, unsigned seed) {
-    PointList cloud = scan(a, seen, Eigen::Vector3d(0, -1, 0.2), seed);
-    const PointList pb = scan(b, seen, Eigen::Vector3d(0, -1, 0.2), seed + 100);
-    cloud.insert(cloud.end(), pb.begin(), pb.end());
-    return cloud;
-  };
+  const auto pair = touchingPair();
+  const Superellipsoid &a = pair.first, &b = pair.second;
+  auto view = [&](double seen, unsigned seed) { return scanPair(pair, seen, seed, seed + 100); };
   auto check = [&](const std::vector<FruitEstimate>& fruits) {
     ASSERT_EQ(fruits.size(), 2u);
     for (const auto* t : {&a, &b}) {
