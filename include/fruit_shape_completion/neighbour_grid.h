@@ -27,30 +27,18 @@ class NeighbourGrid {
   void forEachPoint(double radius, Fn&& fn) const {
     const double r2 = radius * radius;
     Ranges ranges;
-    std::vector<int> hit;  // collected without a branch, as in forEachPairByPosition
-    std::vector<double> hit_d2;
+    Hits hits;
     for (const auto& cell : cell_list_) {
       const int n = neighbourRanges(cell.first, &ranges);
-      std::size_t candidates = 0;
-      for (int r = 0; r < n; ++r) candidates += static_cast<std::size_t>(ranges[r].second - ranges[r].first);
-      if (hit.size() < candidates) {
-        hit.resize(candidates);
-        hit_d2.resize(candidates);
-      }
+      hits.makeRoom(0, ranges, n);
       for (int k = cell.second.first; k < cell.second.second; ++k) {
         const Point& p = sorted_[static_cast<std::size_t>(k)];
         fn(order_[static_cast<std::size_t>(k)], [&](auto&& visit) {
-          std::size_t count = 0;
-          for (int r = 0; r < n; ++r)
-            for (int m = ranges[r].first; m < ranges[r].second; ++m) {
-              const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
-              hit[count] = m;
-              hit_d2[count] = d2;
-              count += d2 <= r2 ? 1 : 0;
-            }
-          for (std::size_t h = 0; h < count; ++h) {
-            const auto m = static_cast<std::size_t>(hit[h]);
-            visit(order_[m], hit_d2[h], sorted_[m]);
+          hits.count = 0;
+          for (int r = 0; r < n; ++r) collectWithin(p, ranges[r].first, ranges[r].second, r2, &hits);
+          for (std::size_t h = 0; h < hits.count; ++h) {
+            const auto m = static_cast<std::size_t>(hits.index[h]);
+            visit(order_[m], hits.d2[h], sorted_[m]);
           }
         });
       }
@@ -72,33 +60,16 @@ class NeighbourGrid {
   void forEachPairByPosition(double radius, Fn&& fn) const {
     const double r2 = radius * radius;
     Ranges ranges;
-    // All candidates of a point are measured first and the hits collected without a branch
-    // (whether a candidate lies within the radius is a coin toss a branch predictor loses), then
-    // visited.
-    std::vector<int> hit;
-    std::vector<double> hit_d2;
+    Hits hits;
     for (const auto& cell : cell_list_) {
       const int n = forwardRanges(cell.first, &ranges);
-      std::size_t candidates = static_cast<std::size_t>(cell.second.second - cell.second.first);
-      for (int r = 0; r < n; ++r) candidates += static_cast<std::size_t>(ranges[r].second - ranges[r].first);
-      if (hit.size() < candidates) {
-        hit.resize(candidates);
-        hit_d2.resize(candidates);
-      }
+      hits.makeRoom(static_cast<std::size_t>(cell.second.second - cell.second.first), ranges, n);
       for (int k = cell.second.first; k < cell.second.second; ++k) {
         const Point& p = sorted_[static_cast<std::size_t>(k)];
-        std::size_t count = 0;
-        auto test = [&](int begin, int end) {
-          for (int m = begin; m < end; ++m) {
-            const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
-            hit[count] = m;
-            hit_d2[count] = d2;
-            count += d2 <= r2 ? 1 : 0;
-          }
-        };
-        test(k + 1, cell.second.second);
-        for (int r = 0; r < n; ++r) test(ranges[r].first, ranges[r].second);
-        for (std::size_t h = 0; h < count; ++h) fn(k, hit[h], hit_d2[h]);
+        hits.count = 0;
+        collectWithin(p, k + 1, cell.second.second, r2, &hits);
+        for (int r = 0; r < n; ++r) collectWithin(p, ranges[r].first, ranges[r].second, r2, &hits);
+        for (std::size_t h = 0; h < hits.count; ++h) fn(k, hits.index[h], hits.d2[h]);
       }
     }
   }
@@ -125,10 +96,30 @@ class NeighbourGrid {
 
  private:
   using Ranges = std::array<std::pair<int, int>, 27>;
-  template <typename Fn>
-  void visitIfWithin(const Point& p, int k, int m, double r2, Fn& fn) const {
-    const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
-    if (d2 <= r2) fn(k, m, d2);
+  // The positions and squared distances of the candidates a point's loop found within the
+  // radius, measured first and visited after.
+  struct Hits {
+    std::vector<int> index;
+    std::vector<double> d2;
+    std::size_t count = 0;
+    // Room for `own` candidates plus those of the first n ranges.
+    void makeRoom(std::size_t own, const Ranges& ranges, int n) {
+      for (int r = 0; r < n; ++r) own += static_cast<std::size_t>(ranges[r].second - ranges[r].first);
+      if (index.size() < own) {
+        index.resize(own);
+        d2.resize(own);
+      }
+    }
+  };
+  // Appends the candidates at positions [begin, end) within r2 of p to `hits` without a branch
+  // per candidate: whether one lies within the radius is a coin toss a branch predictor loses.
+  void collectWithin(const Point& p, int begin, int end, double r2, Hits* hits) const {
+    for (int m = begin; m < end; ++m) {
+      const double d2 = (sorted_[static_cast<std::size_t>(m)] - p).squaredNorm();
+      hits->index[hits->count] = m;
+      hits->d2[hits->count] = d2;
+      hits->count += d2 <= r2 ? 1 : 0;
+    }
   }
   // The ranges of the occupied cells among `cell` and its 26 neighbours; returns their count.
   int neighbourRanges(const GridCell& cell, Ranges* ranges) const;
