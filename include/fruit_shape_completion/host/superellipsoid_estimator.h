@@ -24,7 +24,7 @@ struct SuperellipsoidEstimatorParams {
   TsdfIntegratorParams integrator;
   SurfaceExtractionParams surface;
   PipelineParams pipeline;
-  bool publish_targets = true;  // hand the predicted surface to the planner as extra targets
+  bool shape_targets = true;  // hand the predicted surface to the planner as extra targets
 };
 
 // What the estimator has dropped since it started (or was reset), and its map's memory: the

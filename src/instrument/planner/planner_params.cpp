@@ -29,12 +29,18 @@ std::string PlannerParams::problem() const {
   if (!finite_pos(view_cost)) return "view_cost must be > 0";
   if (!finite_pos(speed)) return "speed must be > 0";
   if (!(roi_leaf >= 0.001 && roi_leaf <= 0.1)) return "roi_leaf must be in [0.001, 0.1] m";
-  if (!finite_pos(min_view_distance) || !(max_view_distance >= min_view_distance) || !std::isfinite(max_view_distance))
-    return "view distances must satisfy 0 < min_view_distance <= max_view_distance";
-  if (candidates < 1) return "candidates must be >= 1";
-  if (utility_rays_x < 1 || utility_rays_y < 1) return "utility_rays_x/y must be >= 1";
-  if (!finite_pos(utility_range)) return "utility_range must be > 0";
-  if (!(std::isfinite(travel_weight) && travel_weight >= 0.0)) return "travel_weight must be >= 0";
+  const UpstreamSamplingParams& s = sampling;
+  if (!finite_pos(s.min_range) || !(s.max_range >= s.min_range) || !std::isfinite(s.max_range))
+    return "sensor ranges must satisfy 0 < min_range <= max_range";
+  if (s.roi_samples < 0 || s.expl_samples < 0 || s.roi_samples + s.expl_samples < 1)
+    return "roi_samples and expl_samples must be >= 0, one of them > 0";
+  if (!finite_pos(s.inflation_resolution) || !finite_pos(s.inflation_radius))
+    return "inflation_resolution and inflation_radius must be > 0";
+  if (!(std::isfinite(s.travel_weight) && s.travel_weight >= 0.0)) return "travel_weight must be >= 0";
+  if (!std::isfinite(s.roi_threshold)) return "roi_threshold must be finite";
+  if (!(std::isfinite(ik_failure_cost) && ik_failure_cost >= 0.0) || !(std::isfinite(plan_failure_cost) && plan_failure_cost >= 0.0))
+    return "ik_failure_cost and plan_failure_cost must be >= 0";
+  if (!finite_pos(retry_cost)) return "retry_cost must be > 0";
   if (!(octree_resolution >= 0.001 && octree_resolution <= 0.5)) return "octree_resolution must be in [0.001, 0.5] m";
   if (octree_pixel_step < 1) return "octree_pixel_step must be >= 1";
   if (!finite_pos(octree_max_range)) return "octree_max_range must be > 0";
@@ -55,7 +61,6 @@ PlannerParams paperProfile(PlannerParams p) {
   p.paper_depth_noise = true;
   p.textures = true;
   p.upstream_red_test = true;
-  p.explore_plants = false;
   p.estimator_period = 3.0;  // the paper's surface cloud came every 3 s
   p.charge_compute_time = true;
   p.arm = true;

@@ -142,8 +142,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1e-3, 1.0));
   app.add_option("--plan-overhead", plan_overhead, "seconds per plan besides motion and compute (ideal: 2, paper: 1.5)")
       ->check(CLI::Range(0.0, 1e3));
-  app.add_flag_callback("--no-shape-targets", [&] { base.shape_targets = false; },
-                        "do not hand the predicted surface to the planner");
+  app.add_flag_callback("--no-shape-targets", [&] { estimator.shape_targets = false; },
+                        "the estimator's shape_targets parameter off: it fits but hands the planner no targets");
   app.add_flag_callback("--no-noise", [&] { base.depth_noise = false; }, "noise-free depth");
   app.add_flag("--flat-colours", flat_colours, "the scene files' flat colours instead of the textures");
   app.add_flag("--json", json, "print results.json to stdout");
@@ -237,13 +237,13 @@ int main(int argc, char** argv) {
   // Per-trial CSV: one row per view.
   for (int k = 0; k < trials; ++k) {
     std::ofstream csv(out + "/trial_" + std::to_string(k) + ".csv");
-    csv << "view,time_s,x,y,z,exploration,gain,contour_targets,shape_targets,wall_ms,compute_ms";
+    csv << "view,time_s,x,y,z,exploration,gain,attempts,contour_targets,shape_targets,wall_ms,compute_ms";
     for (const char* est : {"old", "se", "old_box"})
       for (const char* s : kSubsets) csv << ',' << est << '_' << s << "_fruits," << est << '_' << s << "_center_cm," << est << '_' << s << "_accuracy";
     csv << '\n';
     for (const auto& v : results[k].views) {
       csv << v.view << ',' << v.time << ',' << v.position.x() << ',' << v.position.y() << ',' << v.position.z() << ','
-          << v.exploration << ',' << v.gain << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
+          << v.exploration << ',' << v.gain << ',' << v.attempts << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
       for (const Evaluation* e : {&v.old_true, &v.se_true, &v.old_box})
         for (int s = 0; s < 3; ++s)
           csv << ',' << subset(*e, s).fruits << ',' << subset(*e, s).center_error_cm << ',' << subset(*e, s).accuracy;
@@ -283,10 +283,13 @@ int main(int argc, char** argv) {
     }
     return v;
   };
-  std::vector<double> views_per, reachable;
+  std::vector<double> views_per, reachable, failed_per, attempts_per, idle_per;
   long sampled = 0, ik = 0, limits = 0, collision = 0, failed_moves = 0;
   for (const auto& r : results) {
     views_per.push_back(r.views.size());
+    failed_per.push_back(r.failed_moves);
+    attempts_per.push_back(r.sampled_views);
+    idle_per.push_back(r.rounds_without_move);
     if (r.sampled_views > 0) reachable.push_back(double(r.reachable_views) / r.sampled_views);
     sampled += r.sampled_views;
     ik += r.unreachable_ik;
@@ -298,7 +301,8 @@ int main(int argc, char** argv) {
   std::ofstream js(out + "/results.json");
   nlohmann::json body = {
       {"scene", scene.name}, {"profile", profile}, {"red_test", red_test}, {"textures", base.textures},
-      {"trials", trials}, {"duration_s", base.duration}, {"shape_targets", base.shape_targets},
+      {"trials", trials}, {"duration_s", base.duration}, {"shape_targets", estimator.shape_targets},
+      {"planner", "upstream"},
       {"input", input_name},
       {"input_stage", {{"depth_edges", estimator.input.drop_depth_edges}, {"outliers", estimator.input.remove_outliers},
                        {"veil", estimator.input.drop_veil_points}}},
@@ -309,9 +313,13 @@ int main(int argc, char** argv) {
   if (base.arm) {
     body["reachable_fraction"] = {{"mean", reach.mean}, {"std", reach.std}};
     body["unreachable"] = {{"sampled", sampled}, {"no_inverse", ik}, {"joint_limits", limits}, {"collision", collision}};
-    body["failed_moves_per_trial"] = double(failed_moves) / trials;
   }
-  for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0)}) {
+  body["failed_moves_per_trial"] = double(failed_moves) / trials;
+  body["failed_moves"] = failed_per;                // per trial: moves executed into unseen plants
+  body["move_attempts"] = attempts_per;             // per trial: candidates tried best first
+  body["rounds_without_move"] = idle_per;           // per trial: planning rounds whose every attempt failed
+  for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0),
+                                std::make_pair("at_120s", 120.0)}) {
     body[label] = {{"old", subsetsJson(collect(t, &ViewRecord::old_true))},
                    {"se", subsetsJson(collect(t, &ViewRecord::se_true))},
                    {"against_se_truth",
@@ -343,7 +351,7 @@ int main(int argc, char** argv) {
     std::cout << text;
   } else {
     std::printf("%s: %zu red ground-truth fruits scored (%zu of other colours not), %d trials of %.0f s (simulated), shape targets %s, %.1f views and %.1f s wall per trial\n",
-                scene.name.c_str(), truth.enclosed.size(), truth.not_scored.size(), trials, base.duration, base.shape_targets ? "on" : "off",
+                scene.name.c_str(), truth.enclosed.size(), truth.not_scored.size(), trials, base.duration, estimator.shape_targets ? "on" : "off",
                 meanStd(views_per).mean, meanStd(wall).mean);
     if (!messages.empty()) std::printf("note: %s\n", messages.c_str());
     if (base.arm && sampled > 0)

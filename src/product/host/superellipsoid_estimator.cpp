@@ -97,7 +97,7 @@ void SuperellipsoidEstimator::update() {
   if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
   std::vector<FruitEstimate> estimates = pipeline_.fruits();
   PointList targets;
-  if (params_.publish_targets)
+  if (params_.shape_targets)
     for (const auto& f : estimates)
       if (f.accepted) targets.insert(targets.end(), f.missing_surface.begin(), f.missing_surface.end());
   std::lock_guard<std::mutex> lock(results_mutex_);

@@ -119,7 +119,8 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("max_rms", p.pipeline.fit.max_rms);
   read("missing_surface_samples", p.pipeline.missing.samples);
   read("missing_surface_threshold", p.pipeline.missing.threshold);
-  read("publish_targets", p.publish_targets);
+  read("publish_targets", p.shape_targets);  // the older name of shape_targets
+  read("shape_targets", p.shape_targets);
   rejectUnknownKeys(nh, known);
   try {
     p.input.validate();

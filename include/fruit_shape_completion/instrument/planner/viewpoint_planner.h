@@ -1,13 +1,17 @@
 #pragma once
-// A next-best-view loop over a simulated scene, standing in for the upstream ROI viewpoint
-// planner: render a view, insert it into the ROI octree, hand it to the shape estimators,
-// collect targets (ROI contours + the estimators' predicted surface), sample views around
-// them and take the best by utility (unknown cells near targets seen along the camera rays,
-// minus travel). Each view costs simulated time: a fixed `view_cost` for planning and capture
-// plus the travel, either the camera flying at `speed` or (params.arm) the scene's UR5e moving
-// in joint space, only to views it can reach; the episode ends when `duration` is spent.
+// A next-best-view loop over a simulated scene, standing in for roi_viewpoint_planner in its
+// default automatic mode: render a view, insert it into the ROI octree, hand it to the shape
+// estimators, sample ROI-contour views (with the estimators' predicted surface in the target
+// pool, as the integration patch adds it) and contour exploration views, score them by
+// ROI_VICINITY_UTILITY (upstream_sampling.h), take the ROI views when the best scores above 0.2,
+// else the exploration views, and try them best first until a move succeeds. Every attempt
+// costs simulated time: a failed inverse kinematics or motion plan its planning time, a
+// successful one `view_cost` (plan, settle, fresh frame) plus the travel, either the camera
+// flying at `speed` or (params.arm) the scene's UR5e moving in joint space. The episode ends
+// when `duration` is spent.
 #include <fruit_shape_completion/instrument/planner/evaluation.h>
 #include <fruit_shape_completion/instrument/planner/roi_octree.h>
+#include <fruit_shape_completion/instrument/planner/upstream_sampling.h>
 #include <fruit_shape_completion/host/shape_estimator.h>
 #include <fruit_shape_completion/instrument/sim/fruit_truth.h>
 #include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
@@ -30,12 +34,16 @@ struct PlannerParams {
   double duration = 180.0;   // [s] simulated
   double view_cost = 2.0;    // [s] planning + capture per view
   double speed = 0.3;        // [m/s] camera travel (arm-like)
-  double min_view_distance = 0.3, max_view_distance = 0.5;  // [m] from a target
-  int candidates = 24;       // views sampled per step
-  int utility_rays_x = 24, utility_rays_y = 18;
-  double utility_range = 1.0;  // [m]
-  double travel_weight = 0.2;  // utility = gain / best gain - travel_weight * distance [m]
-  bool shape_targets = true;   // use the estimators' extra targets
+  // Upstream's samplers and utility with Planner.cfg's defaults.
+  UpstreamSamplingParams sampling;
+  // What a failed attempt costs: an inverse kinematics call that finds no solution, and a
+  // motion plan whose goal collides with the map (MoveIt gives up on it).
+  double ik_failure_cost = 0.05, plan_failure_cost = 1.0;  // [s]
+  // A planning round that moved nowhere: the planner loop's next round (100 Hz) and sampling.
+  double retry_cost = 0.1;  // [s]
+  // Hands the estimators' extra targets to the samplers. The product's own switch is the
+  // estimator's `shape_targets` parameter; this one stands for a planner built without the patch.
+  bool shape_targets = true;
   double octree_resolution = 0.01;  // [m] the ROI octree's cells
   int octree_pixel_step = 3;   // every n-th pixel (both ways) goes into the 1 cm octree
   double octree_max_range = 1.5;
@@ -57,7 +65,6 @@ struct PlannerParams {
   bool paper_depth_noise = false;   // the paper's structured noise and blur (sim::DepthNoise::kPaper)
   bool upstream_red_test = false;   // pointcloud_roi's HSI red test (sim::RedThreshold::kUpstream)
   bool textures = false;  // for whoever builds the renderer: sim::Shading::textures (Gazebo's look)
-  bool explore_plants = true;       // exploration looks at the scene's plants (ground truth)
   double estimator_period = 0.0;    // [s] > 0: estimators update on this period, not every view
   // The planner's wall time (with the estimators' insertView) adds to the clock, and a fit's
   // results reach the planner only its measured duration after it started.
@@ -85,8 +92,9 @@ struct ViewRecord {
   Evaluation old_se, se_se;      // against the ground-truth superellipsoid volume
   Evaluation old_box;            // Old against the voxel-centre box (SceneTruth::box)
   int contour_targets = 0, shape_targets = 0;
-  bool exploration = false;
-  double gain = 0.0;  // the best candidate's gain (unknown cells its rays see) when this view was planned
+  bool exploration = false;  // the exploration candidates were used (no ROI view above the threshold)
+  double gain = 0.0;      // the best candidate's ROI-weighted gain when this view was planned
+  int attempts = 0;       // moves tried (best first) before one succeeded or the list ran out
   double wall_ms = 0.0;
   double compute_ms = 0.0;  // what the planner blocked on: wall_ms without rendering and the fit
   double fit_ms = 0.0;      // a fit started after this view (0: none); runs beside the planner
@@ -100,9 +108,11 @@ struct EpisodeResult {
   // pixels it missed, and other pixels it took for fruit.
   std::uint64_t mask_positives = 0, mask_false_negatives = 0;
   std::uint64_t mask_negatives = 0, mask_false_positives = 0;
-  // With the arm: candidate views sampled and those it could reach; why the others failed.
+  // Move attempts and those the arm could plan; why the others failed (no inverse kinematics,
+  // joint limits, a goal in collision with the map or the pole).
   int sampled_views = 0, reachable_views = 0, unreachable_ik = 0, unreachable_limits = 0, unreachable_collision = 0;
   int failed_moves = 0;  // planned moves whose goal hit plants the map had not seen
+  int planning_rounds = 0, rounds_without_move = 0;
   std::vector<FruitEstimate> final_fruits;  // the estimator's scored fruits after the last view
   int dropped_views = 0;       // views that threw and were skipped
   std::string dropped_reason;  // the first one's exception
