@@ -3,6 +3,10 @@
 
 usage: scripts/compare_trials.py DIR_A DIR_B [--at 60,180] [--column se_ma50_fruits]
 
+DIR_A and DIR_B may each list several folders, comma-separated, whose trials are pooled (e.g. two
+runs with --seed 1 and --seed 21). Besides the column it prints, per side, the failed moves per
+episode from each folder's results.json.
+
 For each time t it takes, per trial, the column's value at the last view captured at or before
 t (0 before the first view), and prints both means and standard deviations, the difference,
 Welch's t statistic and a two-sided permutation p-value (20 000 random relabellings of the
@@ -10,15 +14,34 @@ trials; no SciPy needed). Trials are independent episodes, so the test compares 
 """
 import csv
 import glob
+import json
 import math
 import os
 import random
 import sys
 
 
-def values_at(folder, column, t):
+def trial_files(folders):
     out = []
-    for path in sorted(glob.glob(os.path.join(folder, "trial_*.csv"))):
+    for folder in folders.split(","):
+        out += sorted(glob.glob(os.path.join(folder, "trial_*.csv")))
+    return out
+
+
+def failed_moves(folders):
+    out = []
+    for folder in folders.split(","):
+        try:
+            with open(os.path.join(folder, "results.json")) as f:
+                out += json.load(f).get("failed_moves", [])
+        except (OSError, ValueError):
+            pass
+    return out
+
+
+def values_at(folders, column, t):
+    out = []
+    for path in trial_files(folders):
         value = 0.0
         with open(path, newline="") as f:
             for row in csv.DictReader(f):
@@ -80,6 +103,12 @@ def main(argv):
         (ma, sa), (mb, sb) = mean_std(a), mean_std(b)
         print(f"{t:8.0f}  {ma:6.2f} +- {sa:5.2f} ({len(a):2d})    {mb:6.2f} +- {sb:5.2f} ({len(b):2d})   "
               f"{ma - mb:+6.2f}  {welch_t(a, b):7.2f}  {permutation_p(a, b):.4f}")
+    fa, fb = failed_moves(a_dir), failed_moves(b_dir)
+    if fa and fb:
+        (ma, _), (mb, _) = mean_std(fa), mean_std(fb)
+        ratio = f"{ma / mb:.2f}x" if mb > 0 else "n/a"
+        print(f"failed moves per episode: A {ma:.2f} ({len(fa)}), B {mb:.2f} ({len(fb)}), A / B = {ratio}, "
+              f"permutation p {permutation_p(fa, fb):.4f}")
     return 0
 
 

@@ -1,5 +1,5 @@
 // Someone else's planner: the README's snippet, compiled as written, runs one view of a fruit
-// through the plugin (loaded by name through pluginlib) and must give targets on its hidden side.
+// through the plugin (loaded by name through pluginlib) and must give targets off its hidden side.
 #include <pointcloud_roi_msgs/PointcloudWithRoi.h>
 #include <ros/ros.h>
 
@@ -68,7 +68,8 @@ int main(int argc, char** argv) {
   }
   int on_hidden_side = 0;
   for (const auto& p : targets) {
-    const double off = std::abs(std::sqrt(p.x() * p.x() + p.y() * p.y() + (p.z() - 0.5) * (p.z() - 0.5)) - 0.04);
+    // Targets sit target_offset (default 3 cm) outside the predicted surface.
+    const double off = std::abs(std::sqrt(p.x() * p.x() + p.y() * p.y() + (p.z() - 0.5) * (p.z() - 0.5)) - 0.04 - 0.03);
     on_hidden_side += off < 0.006 && p.z() > 0.49;
   }
   std::cout << "downstream_check: " << targets.size() << " targets, " << on_hidden_side

@@ -749,7 +749,7 @@ TEST(ViewpointPlanner, AFitsResultsReachThePlannerAfterTheFitNotBeforeAndNotNeve
   ShapeEstimatorHost host;
   host.add(std::make_unique<SuperellipsoidEstimator>());
   PlannerParams p;
-  p.duration = 40;
+  p.duration = 60;
   p.render_threads = 2;
   p.charge_compute_time = true;
   p.estimator_period = 0.0;  // a fit after every view the estimator is idle for

@@ -196,6 +196,31 @@ TEST(UpstreamSampling, RoiViewsAreUsedOnlyWhenTheBestScoresAboveTheThreshold) {
   // Extra targets join the ROI pool.
   std::mt19937 rng3(3);
   const SampledCandidates extra =
-      sampleUpstream(tree, everywhere(), {Eigen::Vector3d(-0.05, 0, 0)}, near_camera, p, rng3);
+      sampleUpstream(tree, everywhere(), ShapeTargets{{Eigen::Vector3d(-0.05, 0, 0)}, {}}, near_camera, p, rng3);
   EXPECT_EQ(extra.roi_pool, s.roi_pool + 1);
+}
+
+TEST(UpstreamSampling, AShapeTargetWithADirectionIsViewedFromTheSideItFaces) {
+  // An empty map: every sample is kept; the one extra target faces +y.
+  RoiOcTree tree(kRes);
+  setFree(&tree, 0, 0, 0);
+  const Eigen::Vector3d target(0.3, 0.2, 0.5), facing(0, 1, 0);
+  UpstreamSamplingParams p;
+  p.expl_samples = 0;
+  std::mt19937 rng(5);
+  const SampledCandidates s = sampleUpstream(tree, everywhere(), ShapeTargets{{target}, {facing}}, target, p, rng);
+  ASSERT_EQ(s.roi.size(), 100u);
+  for (const auto& v : s.roi) {
+    EXPECT_TRUE(v.shape_target);
+    EXPECT_GE((v.origin - target).dot(facing), 0.0);
+    EXPECT_NEAR((v.direction + (v.origin - target).normalized()).norm(), 0.0, 1e-9);
+  }
+  // Without a direction, both sides.
+  std::mt19937 rng2(5);
+  const SampledCandidates any =
+      sampleUpstream(tree, everywhere(), ShapeTargets{{target}, {Eigen::Vector3d::Zero()}}, target, p, rng2);
+  int behind = 0;
+  for (const auto& v : any.roi) behind += (v.origin - target).dot(facing) < 0.0 ? 1 : 0;
+  EXPECT_GT(behind, 25);
+  EXPECT_LT(behind, 75);
 }

@@ -4,6 +4,7 @@
 // estimator the view and lets it update; before sampling views it collects the estimators'
 // extra ROI targets (e.g. the predicted, unseen fruit surface).
 #include <fruit_shape_completion/fruit_estimate.h>
+#include <fruit_shape_completion/shape_targets.h>
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -51,6 +52,9 @@ class ShapeEstimator {
   // The accepted fruits (center() and volume are what the planner evaluates).
   virtual std::vector<FruitEstimate> fruits() const = 0;
   virtual PointList extraTargets() const = 0;
+  // The same targets, with the direction to view each from where the estimator knows it; the
+  // default gives none (any side).
+  virtual ShapeTargets viewTargets() const { return {extraTargets(), {}}; }
   virtual void reset() = 0;
   // Asks a running update() to return soon without publishing its results: the estimator is
   // going away. May be called from any thread; the default does nothing.
@@ -100,6 +104,8 @@ class ShapeEstimatorHost {
   // planner waits for. Quantile q in [0, 1]; 0 if there was none.
   double insertLatencyMs(double q) const;
   PointList extraTargets() const;
+  // All estimators' targets with their directions (zero where an estimator gives none).
+  ShapeTargets viewTargets() const;
   // Fruits of estimator i; empty (and the estimator disabled) if it throws.
   std::vector<FruitEstimate> fruits(std::size_t i) const;
   std::size_t size() const;

@@ -8,6 +8,8 @@
 // never stored: nothing fitted before a reset shows after it.
 #include <fruit_shape_completion/fruit_input_stage.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/fruit_sightings.h>
+#include <fruit_shape_completion/shape_targets.h>
 #include <fruit_shape_completion/host/shape_estimator.h>
 #include <fruit_shape_completion/tsdf_integrator.h>
 #include <fruit_shape_completion/tsdf_surface.h>
@@ -25,6 +27,7 @@ struct SuperellipsoidEstimatorParams {
   SurfaceExtractionParams surface;
   PipelineParams pipeline;
   bool shape_targets = true;  // hand the predicted surface to the planner as extra targets
+  ShapeTargetParams targets;   // which of it (shape_targets.h)
 };
 
 // What the estimator has dropped since it started (or was reset), and its map's memory: the
@@ -50,14 +53,21 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   void update() override;
   std::vector<FruitEstimate> fruits() const override;
   PointList extraTargets() const override;
+  ShapeTargets viewTargets() const override;
   void reset() override;
   void cancelUpdate() override;  // for good: the estimator is going away
 
   // The fruit map as a file (TsdfMap::save/load); a failed load leaves the map unchanged. The
   // map is copied under the lock and written outside it, atomically (a temporary file renamed
   // over the target): views do not wait for the disk, and a failed save keeps the old file.
-  bool saveMap(const std::string& path, std::string* error) const;
-  bool loadMap(const std::string& path, std::string* error);
+  // Both first remove the temporaries a killed save to the same path left behind, naming them
+  // in *warning (empty if none).
+  bool saveMap(const std::string& path, std::string* error, std::string* warning = nullptr) const;
+  bool loadMap(const std::string& path, std::string* error, std::string* warning = nullptr);
+  // The accepted fruits of the last update with the views that saw them (fruit_report.h), to a
+  // .csv or .json file, atomically.
+  bool exportFruits(const std::string& path, std::string* error, std::string* warning = nullptr) const;
+  std::map<int, FruitSightings> sightings() const;
 
   // Snapshots for display and tests.
   std::vector<FruitEstimate> estimates() const;
@@ -72,7 +82,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
  private:
   SuperellipsoidEstimatorParams params_;
   FruitInputStage input_stage_;  // const after construction: runs outside the locks
-  // Lock order: fit_mutex_, then map_mutex_, then results_mutex_.
+  // Lock order: fit_mutex_, then map_mutex_, then results_mutex_, then sightings_mutex_.
   std::mutex fit_mutex_;  // one update at a time; guards pipeline_
   std::atomic<bool> cancel_{false};  // a running update returns early and stores nothing
   std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
@@ -88,9 +98,12 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   bool dirty_ = false;
   mutable std::mutex results_mutex_;  // guards the last update's results below
   std::vector<FruitEstimate> estimates_;
-  PointList surface_, targets_;
+  PointList surface_;
+  ShapeTargets targets_;
   PipelineStats stats_;
   double surface_seconds_ = 0.0;
+  mutable std::mutex sightings_mutex_;  // guards sightings_; always taken last
+  FruitSightingLog sightings_;
 };
 
 }  // namespace host

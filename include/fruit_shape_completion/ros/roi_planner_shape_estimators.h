@@ -46,6 +46,9 @@ class RoiPlannerShapeEstimators {
   // The estimators' predicted, unseen fruit surface in the map frame, from their latest
   // finished fits. Does not wait for a fit.
   std::vector<octomap::point3d> extraTargets() const;
+  // The same, with one direction per target to view it from (the predicted surface's outward
+  // normal; zero: any side) in *directions.
+  std::vector<octomap::point3d> extraTargets(std::vector<octomap::point3d>* directions) const;
   // Until no fit is pending or running (false after `seconds`): for tools and tests, which
   // want the fit of the view they just gave; a planner does not wait.
   bool waitForFits(double seconds) const { return loader_.host().waitForUpdates(seconds); }

@@ -60,7 +60,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   // The estimators' results as the planner sees them, and a fit still running (in simulated time).
   struct FitResults {
     std::vector<FruitEstimate> fruits;
-    PointList targets;
+    ShapeTargets targets;
   } visible, fit;
   bool fit_pending = false;
   double fit_ready = -1e300;
@@ -146,7 +146,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           const auto fit0 = std::chrono::steady_clock::now();
           host.update();
           fit.fruits = host.fruits(0);
-          fit.targets = p.shape_targets ? host.extraTargets() : PointList();
+          fit.targets = p.shape_targets ? host.viewTargets() : ShapeTargets();
           fit_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - fit0).count();
           fit_ready = start + (p.charge_compute_time ? fit_wall : 0.0);
           fit_pending = true;
@@ -160,11 +160,11 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
 
       // ViewpointPlanner::plannerLoopOnce: sample both lists, take one, try it best first.
       ++result.planning_rounds;
-      const PointList extra = p.shape_targets ? visibleNow().targets : PointList();
+      const ShapeTargets extra = p.shape_targets ? visibleNow().targets : ShapeTargets();
       const SampledCandidates sampled = sampleUpstream(tree, scene.workspace, extra, pos, p.sampling, rng);
       const std::vector<SampledView>& chosen = sampled.chosen();
-      rec.contour_targets = static_cast<int>(sampled.roi_pool - extra.size());
-      rec.shape_targets = static_cast<int>(extra.size());
+      rec.contour_targets = static_cast<int>(sampled.roi_pool - extra.points.size());
+      rec.shape_targets = static_cast<int>(extra.points.size());
       rec.exploration = !sampled.use_roi;
       rec.gain = chosen.empty() ? 0.0 : chosen.front().gain;
       double travel = 0.0;  // [s] of a successful move, charged after the round's compute
@@ -183,7 +183,10 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
             case sim::RobotArm::Reach::kJointLimits: ++result.unreachable_limits; t += p.ik_failure_cost; continue;
             case sim::RobotArm::Reach::kCollision: ++result.unreachable_collision; t += p.plan_failure_cost; continue;
           }
-          if (!moveArm(reached)) continue;  // executed into unseen plants: upstream tries the next
+          if (!moveArm(reached)) {  // executed into unseen plants: upstream tries the next
+            result.failed_moves_shape += c.shape_target ? 1 : 0;
+            continue;
+          }
         } else {
           // The free-flying camera: MoveIt's collision check against the true scene.
           if (!renderer.isClear(c.origin, p.clearance)) {
@@ -197,6 +200,9 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         pos = c.origin;
         rot = goal.rotation;
         moved = true;
+        rec.to_shape_target = c.shape_target;
+        ++result.moves;
+        result.moves_shape += c.shape_target ? 1 : 0;
         break;
       }
       const auto done = std::chrono::steady_clock::now();

@@ -186,7 +186,7 @@ double roiWeightedGain(const RoiOcTree& tree, const InflatedRois& inflated, cons
 }
 
 SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& workspace,
-                                 const PointList& extra_targets, const Eigen::Vector3d& camera,
+                                 const ShapeTargets& extra, const Eigen::Vector3d& camera,
                                  const UpstreamSamplingParams& p, std::mt19937& rng) {
   SampledCandidates out;
   const std::vector<octomap::OcTreeKey> roi_keys = upstreamRoiKeys(tree);
@@ -201,15 +201,21 @@ SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& wo
 
   // RoiContourSampler (with the integration patch's extra targets in its pool).
   PointList pool = roiContourPool(tree, roi_keys);
-  pool.insert(pool.end(), extra_targets.begin(), extra_targets.end());
+  const std::size_t contour_count = pool.size();
+  pool.insert(pool.end(), extra.points.begin(), extra.points.end());
   out.roi_pool = pool.size();
   if (!pool.empty()) {
     std::uniform_int_distribution<std::size_t> pick(0, pool.size() - 1);
     for (int i = 0; i < p.roi_samples; ++i) {
       SampledView v;
-      v.target = pool[pick(rng)];
+      const std::size_t i_target = pick(rng);
+      v.target = pool[i_target];
+      v.shape_target = i_target >= contour_count;
       const double dist = sensorDistance(p, rng);
       v.origin = pointOnSphere(v.target, dist, rng);
+      if (v.shape_target && i_target - contour_count < extra.directions.size() &&
+          extra.directions[i_target - contour_count].dot(v.origin - v.target) < 0.0)
+        v.origin = 2.0 * v.target - v.origin;
       v.direction = (v.target - v.origin).normalized();
       if (!workspace.contains(v.origin)) continue;
       out.roi.push_back(score(v));

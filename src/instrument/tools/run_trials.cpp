@@ -144,6 +144,15 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1e3));
   app.add_flag_callback("--no-shape-targets", [&] { estimator.shape_targets = false; },
                         "the estimator's shape_targets parameter off: it fits but hands the planner no targets");
+  app.add_option("--target-settled-coverage", estimator.targets.settled_coverage,
+                 "fruits seen over at least this share of their fitted surface hand over no targets")
+      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  app.add_option("--targets-per-fruit", estimator.targets.per_fruit, "at most this many targets per fruit (0: all)")
+      ->check(CLI::Range(0, 100000))->capture_default_str();
+  app.add_option("--target-offset", estimator.targets.offset, "[m] targets this far outside the predicted surface")
+      ->check(CLI::Range(0.0, 0.2))->capture_default_str();
+  app.add_flag_callback("--any-side", [&] { estimator.targets.view_side = false; },
+                        "hand over no viewing directions: the planner views shape targets from any side");
   app.add_flag_callback("--no-noise", [&] { base.depth_noise = false; }, "noise-free depth");
   app.add_flag("--flat-colours", flat_colours, "the scene files' flat colours instead of the textures");
   app.add_flag("--json", json, "print results.json to stdout");
@@ -237,13 +246,13 @@ int main(int argc, char** argv) {
   // Per-trial CSV: one row per view.
   for (int k = 0; k < trials; ++k) {
     std::ofstream csv(out + "/trial_" + std::to_string(k) + ".csv");
-    csv << "view,time_s,x,y,z,exploration,gain,attempts,contour_targets,shape_targets,wall_ms,compute_ms";
+    csv << "view,time_s,x,y,z,exploration,gain,attempts,to_shape_target,contour_targets,shape_targets,wall_ms,compute_ms";
     for (const char* est : {"old", "se", "old_box"})
       for (const char* s : kSubsets) csv << ',' << est << '_' << s << "_fruits," << est << '_' << s << "_center_cm," << est << '_' << s << "_accuracy";
     csv << '\n';
     for (const auto& v : results[k].views) {
       csv << v.view << ',' << v.time << ',' << v.position.x() << ',' << v.position.y() << ',' << v.position.z() << ','
-          << v.exploration << ',' << v.gain << ',' << v.attempts << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
+          << v.exploration << ',' << v.gain << ',' << v.attempts << ',' << v.to_shape_target << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
       for (const Evaluation* e : {&v.old_true, &v.se_true, &v.old_box})
         for (int s = 0; s < 3; ++s)
           csv << ',' << subset(*e, s).fruits << ',' << subset(*e, s).center_error_cm << ',' << subset(*e, s).accuracy;
@@ -283,13 +292,16 @@ int main(int argc, char** argv) {
     }
     return v;
   };
-  std::vector<double> views_per, reachable, failed_per, attempts_per, idle_per;
+  std::vector<double> views_per, reachable, failed_per, attempts_per, idle_per, failed_shape_per, moves_per, moves_shape_per;
   long sampled = 0, ik = 0, limits = 0, collision = 0, failed_moves = 0;
   for (const auto& r : results) {
     views_per.push_back(r.views.size());
     failed_per.push_back(r.failed_moves);
     attempts_per.push_back(r.sampled_views);
     idle_per.push_back(r.rounds_without_move);
+    failed_shape_per.push_back(r.failed_moves_shape);
+    moves_per.push_back(r.moves);
+    moves_shape_per.push_back(r.moves_shape);
     if (r.sampled_views > 0) reachable.push_back(double(r.reachable_views) / r.sampled_views);
     sampled += r.sampled_views;
     ik += r.unreachable_ik;
@@ -302,6 +314,9 @@ int main(int argc, char** argv) {
   nlohmann::json body = {
       {"scene", scene.name}, {"profile", profile}, {"red_test", red_test}, {"textures", base.textures},
       {"trials", trials}, {"duration_s", base.duration}, {"shape_targets", estimator.shape_targets},
+      {"targets", {{"settled_coverage", estimator.targets.settled_coverage}, {"per_fruit", estimator.targets.per_fruit},
+                   {"offset_m", estimator.targets.offset},
+                   {"view_side", estimator.targets.view_side}}},
       {"planner", "upstream"},
       {"input", input_name},
       {"input_stage", {{"depth_edges", estimator.input.drop_depth_edges}, {"outliers", estimator.input.remove_outliers},
@@ -318,6 +333,9 @@ int main(int argc, char** argv) {
   body["failed_moves"] = failed_per;                // per trial: moves executed into unseen plants
   body["move_attempts"] = attempts_per;             // per trial: candidates tried best first
   body["rounds_without_move"] = idle_per;           // per trial: planning rounds whose every attempt failed
+  body["failed_moves_shape"] = failed_shape_per;    // per trial: failed moves toward views of shape targets
+  body["moves"] = moves_per;                        // per trial: successful moves
+  body["moves_shape"] = moves_shape_per;            // per trial: of which toward views of shape targets
   for (const auto& [label, t] : {std::make_pair("final", base.duration), std::make_pair("at_60s", 60.0),
                                 std::make_pair("at_120s", 120.0)}) {
     body[label] = {{"old", subsetsJson(collect(t, &ViewRecord::old_true))},

@@ -7,6 +7,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <chrono>
+#include <filesystem>
+
 namespace fruit_shape_completion {
 
 bool writeFileAtomically(const std::string& path, const std::string& bytes, std::string* error) {
@@ -38,6 +41,28 @@ bool writeFileAtomically(const std::string& path, const std::string& bytes, std:
   if (::close(fd) != 0) return fail("cannot close", tmp);
   if (::rename(tmp.c_str(), path.c_str()) != 0) return fail("cannot replace", tmp);
   return true;
+}
+
+std::vector<std::string> removeStaleTemporaries(const std::string& path, double min_age) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> removed;
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  const std::string prefix = target.filename().string() + ".tmp";
+  std::error_code ec;
+  fs::directory_iterator it(dir, ec), end;
+  if (ec) return removed;
+  const auto now = fs::file_time_type::clock::now();
+  for (; it != end; it.increment(ec)) {
+    if (ec) break;
+    const std::string name = it->path().filename().string();
+    if (name.size() != prefix.size() + 6 || name.compare(0, prefix.size(), prefix) != 0) continue;
+    if (!it->is_regular_file(ec)) continue;
+    const auto modified = fs::last_write_time(it->path(), ec);
+    if (ec || std::chrono::duration<double>(now - modified).count() < min_age) continue;
+    if (fs::remove(it->path(), ec)) removed.push_back(it->path().string());
+  }
+  return removed;
 }
 
 }  // namespace fruit_shape_completion

@@ -228,6 +228,22 @@ PointList ShapeEstimatorHost::extraTargets() const {
   return all;
 }
 
+ShapeTargets ShapeEstimatorHost::viewTargets() const {
+  ShapeTargets all;
+  for (std::size_t i = 0, n = size(); i < n; ++i) {
+    ShapeTargets t;
+    if (!guarded(i, [&](ShapeEstimator& e) { t = e.viewTargets(); })) continue;
+    const bool directed = t.directions.size() == t.points.size();
+    for (std::size_t k = 0; k < t.points.size(); ++k) {
+      if (!t.points[k].allFinite()) continue;
+      all.points.push_back(t.points[k]);
+      const bool ok = directed && t.directions[k].allFinite();
+      all.directions.push_back(ok ? t.directions[k] : Point::Zero());
+    }
+  }
+  return all;
+}
+
 std::vector<FruitEstimate> ShapeEstimatorHost::fruits(std::size_t i) const {
   std::vector<FruitEstimate> f;
   guarded(i, [&](ShapeEstimator& e) { f = e.fruits(); });  // f stays empty if it throws

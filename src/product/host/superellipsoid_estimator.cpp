@@ -1,6 +1,7 @@
 #include <fruit_shape_completion/host/superellipsoid_estimator.h>
 
 #include <fruit_shape_completion/atomic_file.h>
+#include <fruit_shape_completion/fruit_report.h>
 
 #include <chrono>
 
@@ -40,6 +41,10 @@ FruitInput runInputStage(const FruitInputStage& stage, const ViewData& view) {
 void SuperellipsoidEstimator::insertView(const ViewData& view) {
   // The stage reads only the view and its own constant parameters: no lock while it runs.
   FruitInput input = runInputStage(input_stage_, view);
+  if (input.ok()) {
+    std::lock_guard<std::mutex> lock(sightings_mutex_);
+    sightings_.addView(view.time, input.fruit);
+  }
   std::lock_guard<std::mutex> lock(map_mutex_);
   if (input.ok()) {
     last_ = integrator_.integrate(map_, input.fruit, view.sensor_pose);
@@ -96,10 +101,12 @@ void SuperellipsoidEstimator::update() {
   pipeline_.update(surface, &cancel_);
   if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
   std::vector<FruitEstimate> estimates = pipeline_.fruits();
-  PointList targets;
-  if (params_.shape_targets)
-    for (const auto& f : estimates)
-      if (f.accepted) targets.insert(targets.end(), f.missing_surface.begin(), f.missing_surface.end());
+  ShapeTargets targets;
+  if (params_.shape_targets) targets = selectShapeTargets(estimates, params_.pipeline.missing.samples, params_.targets);
+  {
+    std::lock_guard<std::mutex> lock(sightings_mutex_);
+    sightings_.update(estimates);
+  }
   std::lock_guard<std::mutex> lock(results_mutex_);
   estimates_ = std::move(estimates);
   surface_ = std::move(surface);
@@ -117,6 +124,11 @@ std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const {
 }
 
 PointList SuperellipsoidEstimator::extraTargets() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return targets_.points;
+}
+
+ShapeTargets SuperellipsoidEstimator::viewTargets() const {
   std::lock_guard<std::mutex> lock(results_mutex_);
   return targets_;
 }
@@ -138,8 +150,10 @@ void SuperellipsoidEstimator::reset() {
   dirty_ = false;
   estimates_.clear();
   surface_.clear();
-  targets_.clear();
+  targets_ = ShapeTargets();
   stats_ = PipelineStats();
+  std::lock_guard<std::mutex> sightings_lock(sightings_mutex_);
+  sightings_.clear();
 }
 
 void SuperellipsoidEstimator::cancelUpdate() {
@@ -147,7 +161,19 @@ void SuperellipsoidEstimator::cancelUpdate() {
   cancel_ = true;
 }
 
-bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error) const {
+namespace {
+
+void removeStale(const std::string& path, std::string* warning) {
+  const std::vector<std::string> removed = removeStaleTemporaries(path);
+  if (!warning) return;
+  warning->clear();
+  for (const auto& r : removed) *warning += (warning->empty() ? "removed the temporary file of an interrupted save: " : ", ") + r;
+}
+
+}  // namespace
+
+bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error, std::string* warning) const {
+  removeStale(path, warning);
   std::string bytes;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
@@ -156,7 +182,8 @@ bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* erro
   return writeFileAtomically(path, bytes, error);
 }
 
-bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* error) {
+bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* error, std::string* warning) {
+  removeStale(path, warning);
   TsdfMap loaded(params_.map);  // read outside the lock: the map keeps taking views meanwhile
   if (!loaded.load(path, error)) return false;
   if (loaded.params().voxel_size != params_.map.voxel_size) {
@@ -169,6 +196,16 @@ bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* erro
   map_ = std::move(loaded);
   dirty_ = true;  // the next update() fits the loaded map
   return true;
+}
+
+std::map<int, FruitSightings> SuperellipsoidEstimator::sightings() const {
+  std::lock_guard<std::mutex> lock(sightings_mutex_);
+  return sightings_.sightings();
+}
+
+bool SuperellipsoidEstimator::exportFruits(const std::string& path, std::string* error, std::string* warning) const {
+  removeStale(path, warning);
+  return writeFruitReport(path, fruits(), sightings(), error);
 }
 
 std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {

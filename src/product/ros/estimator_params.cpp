@@ -121,12 +121,17 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("missing_surface_threshold", p.pipeline.missing.threshold);
   read("publish_targets", p.shape_targets);  // the older name of shape_targets
   read("shape_targets", p.shape_targets);
+  read("target_settled_coverage", p.targets.settled_coverage);
+  read("targets_per_fruit", p.targets.per_fruit);
+  read("target_offset", p.targets.offset);
+  read("target_view_side", p.targets.view_side);
   rejectUnknownKeys(nh, known);
   try {
     p.input.validate();
     p.map.validate();
     p.integrator.validate();
     p.pipeline.validate();
+    p.targets.validate();
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error("bad parameter in " + nh.getNamespace() + ": " + e.what());
   }

@@ -53,15 +53,28 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
 }
 
 std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets() const {
+  std::vector<octomap::point3d> directions;
+  return extraTargets(&directions);
+}
+
+std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets(std::vector<octomap::point3d>* directions) const {
   std::vector<octomap::point3d> out;
+  directions->clear();
+  auto toOctomap = [](const Point& p) {
+    return octomap::point3d(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+  };
   try {
-    const PointList targets = loader_.host().extraTargets();
-    out.reserve(targets.size());
-    for (const auto& p : targets)
-      out.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+    const ShapeTargets targets = loader_.host().viewTargets();
+    out.reserve(targets.points.size());
+    directions->reserve(targets.points.size());
+    for (std::size_t i = 0; i < targets.points.size(); ++i) {
+      out.push_back(toOctomap(targets.points[i]));
+      directions->push_back(toOctomap(targets.directions[i]));
+    }
   } catch (const std::exception& e) {
     ROS_ERROR("shape estimators: no extra targets this time: %s", e.what());
     out.clear();
+    directions->clear();
   }
   return out;
 }

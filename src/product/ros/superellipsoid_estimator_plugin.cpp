@@ -131,6 +131,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   }
   std::vector<FruitEstimate> fruits() const override { return check(), estimator_->fruits(); }
   PointList extraTargets() const override { return check(), estimator_->extraTargets(); }
+  ShapeTargets viewTargets() const override { return check(), estimator_->viewTargets(); }
   void reset() override {
     check();
     if (camera_buffer_) camera_buffer_->clear();

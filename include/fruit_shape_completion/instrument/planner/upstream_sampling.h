@@ -4,6 +4,7 @@
 // written against the stand-in's ROI octree. docs/upstream_planner.md maps each function to the
 // upstream one it emulates and says what differs.
 #include <fruit_shape_completion/instrument/planner/roi_octree.h>
+#include <fruit_shape_completion/shape_targets.h>
 #include <fruit_shape_completion/instrument/sim/scene.h>
 
 #include <octomap/OcTreeKey.h>
@@ -43,6 +44,7 @@ class InflatedRois {
 struct SampledView {
   Eigen::Vector3d origin, target, direction;
   double gain = 0.0, distance = 0.0, utility = 0.0;
+  bool shape_target = false;  // its target came from the estimators' extra targets
 };
 
 // RoiOcTree::getRoiKeys: leaves at full depth whose ROI log-odds is positive.
@@ -69,11 +71,13 @@ struct SampledCandidates {
   const std::vector<SampledView>& chosen() const { return use_roi ? roi : exploration; }
 };
 
-// RoiContourSampler over the pool plus `extra_targets` (the integration patch's shape targets)
-// and ContourSampler, both scored by ROI_VICINITY_UTILITY from `camera`; samples whose origin
-// is outside the workspace are dropped, as upstream drops those outside its workspace tree.
+// RoiContourSampler over the pool plus `extra` (the integration patch's shape targets; a
+// sphere point on the side away from a target's direction is mirrored to the side it faces, as
+// the patch does) and ContourSampler, both scored by ROI_VICINITY_UTILITY from `camera`;
+// samples whose origin is outside the workspace are dropped, as upstream drops those outside
+// its workspace tree.
 SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& workspace,
-                                 const PointList& extra_targets, const Eigen::Vector3d& camera,
+                                 const ShapeTargets& extra, const Eigen::Vector3d& camera,
                                  const UpstreamSamplingParams& params, std::mt19937& rng);
 
 // dirVecToQuat: the camera rotation closest to `current` whose view axis (camera z) is `dir`.

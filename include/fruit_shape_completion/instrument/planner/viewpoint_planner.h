@@ -95,6 +95,7 @@ struct ViewRecord {
   bool exploration = false;  // the exploration candidates were used (no ROI view above the threshold)
   double gain = 0.0;      // the best candidate's ROI-weighted gain when this view was planned
   int attempts = 0;       // moves tried (best first) before one succeeded or the list ran out
+  bool to_shape_target = false;  // the move after this view went to a view of a shape target
   double wall_ms = 0.0;
   double compute_ms = 0.0;  // what the planner blocked on: wall_ms without rendering and the fit
   double fit_ms = 0.0;      // a fit started after this view (0: none); runs beside the planner
@@ -112,6 +113,8 @@ struct EpisodeResult {
   // joint limits, a goal in collision with the map or the pole).
   int sampled_views = 0, reachable_views = 0, unreachable_ik = 0, unreachable_limits = 0, unreachable_collision = 0;
   int failed_moves = 0;  // planned moves whose goal hit plants the map had not seen
+  int failed_moves_shape = 0;  // of which toward views of the estimators' targets
+  int moves = 0, moves_shape = 0;  // successful moves, of which toward views of their targets
   int planning_rounds = 0, rounds_without_move = 0;
   std::vector<FruitEstimate> final_fruits;  // the estimator's scored fruits after the last view
   int dropped_views = 0;       // views that threw and were skipped

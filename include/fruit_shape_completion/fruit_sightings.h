@@ -1,0 +1,35 @@
+#pragma once
+// Which views saw which fruit, for the fruit report: a view saw a fruit when at least three of
+// its fruit points lie within 1 cm of the fruit's fitted surface. Views are matched at the next
+// update against that update's fruits; a fruit fitted for the first time is also matched against
+// the last `kept_views` views, so that the views that found it count. Memory is bounded: each
+// view keeps at most `points_per_view` of its points, and only the last `kept_views` views.
+#include <fruit_shape_completion/fruit_report.h>
+
+#include <deque>
+#include <map>
+#include <set>
+
+namespace fruit_shape_completion {
+
+class FruitSightingLog {
+ public:
+  explicit FruitSightingLog(std::size_t kept_views = 64, std::size_t points_per_view = 256);
+  void addView(double time, const PointList& fruit_points);
+  void update(const std::vector<FruitEstimate>& fruits);
+  const std::map<int, FruitSightings>& sightings() const { return sightings_; }
+  void clear();
+
+ private:
+  struct View {
+    double time;
+    PointList points;
+  };
+  static bool saw(const View& view, const FruitEstimate& fruit);
+  static void record(const View& view, FruitSightings* s);
+  std::size_t kept_views_, points_per_view_;
+  std::deque<View> pending_, kept_;  // not yet matched; matched (the newest kept_views_)
+  std::map<int, FruitSightings> sightings_;
+};
+
+}  // namespace fruit_shape_completion

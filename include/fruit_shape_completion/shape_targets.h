@@ -1,0 +1,38 @@
+#pragma once
+// Which predicted, unseen fruit surface becomes the planner's extra ROI targets. The planner
+// draws its targets uniformly from one pool with its own ROI contours, so what is handed over
+// decides where its views go: fruits already measured well hand over nothing, every other
+// fruit the same number of points however large it is, and each point sits a little outside
+// the predicted surface, so that a ray to it ends in the space a camera must see.
+#include <fruit_shape_completion/fruit_estimate.h>
+
+#include <vector>
+
+namespace fruit_shape_completion {
+
+struct ShapeTargetParams {
+  // A fruit whose fitted surface is seen over at least this share of its samples (no observed
+  // point within the missing-surface threshold elsewhere) hands over no targets. 1: all hand over.
+  double settled_coverage = 1.0;
+  int per_fruit = 0;        // at most this many targets per fruit, spread over its unseen part; 0: all
+  double offset = 0.03;     // [m] along the surface's outward normal
+  // Hand over each target's outward normal, so that the planner views it from the side it
+  // faces; false: zero directions (any side).
+  bool view_side = true;
+  void validate() const;    // throws std::invalid_argument naming the first bad value
+};
+
+// Targets with the direction to view each from: the predicted surface's outward normal there
+// (unit vectors, one per point), or no directions at all (any side).
+struct ShapeTargets {
+  PointList points, directions;
+};
+
+// The share of a fruit's surface samples that were seen (1 - missing / samples).
+double seenCoverage(const FruitEstimate& fruit, int surface_samples);
+
+// The targets of the accepted fruits (missing_surface computed from `surface_samples` samples).
+ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int surface_samples,
+                             const ShapeTargetParams& params);
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,75 @@
+#include <fruit_shape_completion/fruit_report.h>
+
+#include <fruit_shape_completion/atomic_file.h>
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace fruit_shape_completion {
+
+namespace {
+
+bool endsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// Round-trip precision; NaN (never seen) as an empty CSV cell or JSON null.
+std::string number(double v, bool json) {
+  if (!std::isfinite(v)) return json ? "null" : "";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.9g", v);
+  return buf;
+}
+
+}  // namespace
+
+const std::vector<std::string>& fruitReportColumns() {
+  static const std::vector<std::string> columns = {"id", "x", "y", "z", "volume_m3", "a", "b", "c", "e1", "e2",
+                                                   "roll", "pitch", "yaw", "points", "views", "first_seen",
+                                                   "last_seen"};
+  return columns;
+}
+
+bool writeFruitReport(const std::string& path, const std::vector<FruitEstimate>& fruits,
+                      const std::map<int, FruitSightings>& sightings, std::string* error) {
+  const bool json = endsWith(path, ".json");
+  if (!json && !endsWith(path, ".csv")) {
+    if (error) *error = path + ": the file name must end in .csv or .json";
+    return false;
+  }
+  std::ostringstream out;
+  const auto& columns = fruitReportColumns();
+  if (json) {
+    out << "{\"fruits\": [";
+  } else {
+    for (std::size_t i = 0; i < columns.size(); ++i) out << (i ? "," : "") << columns[i];
+    out << '\n';
+  }
+  bool first = true;
+  for (const auto& f : fruits) {
+    if (!f.accepted) continue;
+    const auto it = sightings.find(f.id);
+    const FruitSightings seen = it == sightings.end() ? FruitSightings() : it->second;
+    const Superellipsoid& s = f.shape;
+    const std::vector<std::string> values = {
+        std::to_string(f.id), number(s.t.x(), json), number(s.t.y(), json), number(s.t.z(), json),
+        number(f.volume, json), number(s.a, json), number(s.b, json), number(s.c, json), number(s.e1, json),
+        number(s.e2, json), number(s.rpy.x(), json), number(s.rpy.y(), json), number(s.rpy.z(), json),
+        std::to_string(f.n_points), std::to_string(seen.views), number(seen.first_seen, json),
+        number(seen.last_seen, json)};
+    if (json) {
+      out << (first ? "" : ",") << "\n  {";
+      for (std::size_t i = 0; i < columns.size(); ++i) out << (i ? ", " : "") << '"' << columns[i] << "\": " << values[i];
+      out << '}';
+    } else {
+      for (std::size_t i = 0; i < values.size(); ++i) out << (i ? "," : "") << values[i];
+      out << '\n';
+    }
+    first = false;
+  }
+  if (json) out << (first ? "" : "\n") << "]}\n";
+  return writeFileAtomically(path, out.str(), error);
+}
+
+}  // namespace fruit_shape_completion

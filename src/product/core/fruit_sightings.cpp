@@ -1,0 +1,64 @@
+#include <fruit_shape_completion/fruit_sightings.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace fruit_shape_completion {
+
+FruitSightingLog::FruitSightingLog(std::size_t kept_views, std::size_t points_per_view)
+    : kept_views_(std::max<std::size_t>(1, kept_views)), points_per_view_(std::max<std::size_t>(1, points_per_view)) {}
+
+void FruitSightingLog::addView(double time, const PointList& fruit_points) {
+  View v{time, {}};
+  const std::size_t n = fruit_points.size(), keep = std::min(n, points_per_view_);
+  v.points.reserve(keep);
+  for (std::size_t i = 0; i < keep; ++i) {
+    const Point& p = fruit_points[i * n / keep];
+    if (p.allFinite()) v.points.push_back(p);
+  }
+  pending_.push_back(std::move(v));
+  // Fits may fall behind the views: the oldest unmatched views go first.
+  while (pending_.size() > kept_views_) pending_.pop_front();
+}
+
+bool FruitSightingLog::saw(const View& view, const FruitEstimate& fruit) {
+  const double reach = std::max({fruit.shape.a, fruit.shape.b, fruit.shape.c}) + 0.01;
+  int near = 0;
+  for (const auto& p : view.points) {
+    if ((p - fruit.shape.t).squaredNorm() > reach * reach) continue;
+    const double d = fruit.shape.radialDistance(p);
+    if (std::isfinite(d) && std::abs(d) <= 0.01 && ++near >= 3) return true;
+  }
+  return false;
+}
+
+void FruitSightingLog::record(const View& view, FruitSightings* s) {
+  ++s->views;
+  if (!(s->first_seen <= view.time)) s->first_seen = view.time;  // NaN compares false
+  if (!(s->last_seen >= view.time)) s->last_seen = view.time;
+}
+
+void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits) {
+  for (const auto& f : fruits) {
+    if (!f.accepted) continue;
+    auto it = sightings_.find(f.id);
+    if (it == sightings_.end()) {  // new: the views that found it may already be matched
+      it = sightings_.emplace(f.id, FruitSightings()).first;
+      for (const auto& v : kept_)
+        if (saw(v, f)) record(v, &it->second);
+    }
+    for (const auto& v : pending_)
+      if (saw(v, f)) record(v, &it->second);
+  }
+  for (auto& v : pending_) kept_.push_back(std::move(v));
+  pending_.clear();
+  while (kept_.size() > kept_views_) kept_.pop_front();
+}
+
+void FruitSightingLog::clear() {
+  pending_.clear();
+  kept_.clear();
+  sightings_.clear();
+}
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,61 @@
+#include <fruit_shape_completion/shape_targets.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace fruit_shape_completion {
+
+void ShapeTargetParams::validate() const {
+  if (!(settled_coverage >= 0.0 && settled_coverage <= 1.0))
+    throw std::invalid_argument("target_settled_coverage must be in [0, 1], not " + std::to_string(settled_coverage));
+  if (per_fruit < 0) throw std::invalid_argument("targets_per_fruit must be >= 0, not " + std::to_string(per_fruit));
+  if (!(std::isfinite(offset) && offset >= 0.0 && offset <= 0.2))
+    throw std::invalid_argument("target_offset must be in [0, 0.2] m, not " + std::to_string(offset));
+}
+
+double seenCoverage(const FruitEstimate& fruit, int surface_samples) {
+  if (surface_samples <= 0) return 1.0;
+  return std::clamp(1.0 - static_cast<double>(fruit.missing_surface.size()) / surface_samples, 0.0, 1.0);
+}
+
+namespace {
+
+// The implicit function's gradient by central differences: the outward normal, also where the
+// closed form is singular (the exponents' poles and edges).
+Eigen::Vector3d outwardNormal(const Superellipsoid& shape, const Point& s) {
+  const double h = 1e-4;
+  Eigen::Vector3d g;
+  for (int i = 0; i < 3; ++i) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[i] = h;
+    g[i] = shape.implicit(s + d) - shape.implicit(s - d);
+  }
+  if (g.allFinite() && g.norm() > 1e-12) return g.normalized();
+  const Eigen::Vector3d radial = s - shape.t;
+  return radial.norm() > 1e-12 ? Eigen::Vector3d(radial.normalized()) : Eigen::Vector3d::UnitZ();
+}
+
+}  // namespace
+
+ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int surface_samples,
+                                const ShapeTargetParams& params) {
+  ShapeTargets targets;
+  for (const auto& f : fruits) {
+    if (!f.accepted || f.missing_surface.empty()) continue;
+    if (params.settled_coverage < 1.0 && seenCoverage(f, surface_samples) >= params.settled_coverage) continue;
+    const std::size_t n = f.missing_surface.size();
+    const std::size_t keep = params.per_fruit > 0 ? std::min<std::size_t>(n, params.per_fruit) : n;
+    // Evenly strided: the samples come in surface-parameter order, so a stride spreads them.
+    for (std::size_t i = 0; i < keep; ++i) {
+      const Point& s = f.missing_surface[i * n / keep];
+      const Eigen::Vector3d normal = outwardNormal(f.shape, s);
+      targets.points.push_back(s + params.offset * normal);
+      targets.directions.push_back(params.view_side ? normal : Eigen::Vector3d::Zero());
+    }
+  }
+  return targets;
+}
+
+}  // namespace fruit_shape_completion

@@ -1,0 +1,108 @@
+// Which predicted surface becomes the planner's targets (shape_targets.h): settled fruits hand
+// over nothing, a cap spreads each fruit's targets, targets sit `offset` outside the surface
+// along its outward normal and carry that normal as the side to view them from.
+#include <fruit_shape_completion/missing_surface.h>
+#include <fruit_shape_completion/shape_targets.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace fruit_shape_completion;
+
+namespace {
+
+// A fitted fruit seen on the side z > z_seen only (its observed points are surface samples there).
+FruitEstimate halfSeen(const Superellipsoid& shape, double z_seen, int samples = 300) {
+  FruitEstimate f;
+  f.shape = shape;
+  f.accepted = true;
+  for (const auto& p : shape.sampleSurface(2000))
+    if (p.z() - shape.t.z() > z_seen) f.points.push_back(p);
+  MissingSurfaceParams m;
+  m.samples = samples;
+  f.missing_surface = predictMissingSurface(shape, f.points, m);
+  return f;
+}
+
+}  // namespace
+
+TEST(ShapeTargets, SettledFruitsHandOverNothingAndTheCapSpreadsTheRest) {
+  const Superellipsoid a = Superellipsoid::sphere(0.04, Eigen::Vector3d(0, 0, 0.5));
+  const Superellipsoid b = Superellipsoid::sphere(0.03, Eigen::Vector3d(0.3, 0, 0.5));
+  const FruitEstimate mostly = halfSeen(a, -0.025);  // seen down to 2.5 cm below the centre
+  const FruitEstimate half = halfSeen(b, 0.0);
+  // Samples within the missing-surface threshold (1.5 cm) of a seen point count as seen.
+  const double c_mostly = seenCoverage(mostly, 300), c_half = seenCoverage(half, 300);
+  EXPECT_GT(c_mostly, 0.85);
+  EXPECT_GT(c_half, 0.5);
+  EXPECT_LT(c_half, 0.8);
+  ASSERT_GE(mostly.missing_surface.size(), 10u);
+
+  ShapeTargetParams p;  // every accepted fruit, all its unseen samples
+  p.offset = 0.0;         // on the surface: the spread below is the samples'
+  const ShapeTargets all = selectShapeTargets({mostly, half}, 300, p);
+  EXPECT_EQ(all.points.size(), mostly.missing_surface.size() + half.missing_surface.size());
+  ASSERT_EQ(all.directions.size(), all.points.size());
+
+  p.settled_coverage = 0.85;
+  const ShapeTargets unsettled = selectShapeTargets({mostly, half}, 300, p);
+  EXPECT_EQ(unsettled.points.size(), half.missing_surface.size());
+
+  p.settled_coverage = 1.0;
+  p.per_fruit = 10;
+  const ShapeTargets capped = selectShapeTargets({mostly, half}, 300, p);
+  ASSERT_EQ(capped.points.size(), 20u);
+  // The ten of the half-seen fruit spread over its unseen lower half: from near its equator to
+  // near its bottom.
+  double lowest = 1, highest = -1;
+  for (std::size_t i = 10; i < 20; ++i) {
+    lowest = std::min(lowest, capped.points[i].z() - 0.5);
+    highest = std::max(highest, capped.points[i].z() - 0.5);
+  }
+  EXPECT_LT(lowest, -0.025);
+  EXPECT_GT(highest, -0.015);
+
+  FruitEstimate rejected = half;
+  rejected.accepted = false;
+  EXPECT_TRUE(selectShapeTargets({rejected}, 300, ShapeTargetParams()).points.empty());
+}
+
+TEST(ShapeTargets, TargetsSitOutsideAlongTheOutwardNormalWhichTheyCarry) {
+  Superellipsoid s;
+  s.a = 0.05, s.b = 0.03, s.c = 0.04, s.e1 = 0.4, s.e2 = 0.7;
+  s.t = Eigen::Vector3d(0.1, -0.2, 0.6);
+  s.rpy = Eigen::Vector3d(0.3, -0.2, 1.0);
+  const FruitEstimate f = halfSeen(s, 0.0);
+  ASSERT_GT(f.missing_surface.size(), 50u);
+  ShapeTargetParams p;
+  p.offset = 0.02;
+  const ShapeTargets t = selectShapeTargets({f}, 300, p);
+  ASSERT_EQ(t.points.size(), f.missing_surface.size());
+  for (std::size_t i = 0; i < t.points.size(); ++i) {
+    const Eigen::Vector3d& n = t.directions[i];
+    EXPECT_NEAR(n.norm(), 1.0, 1e-9);
+    // Outside the surface, 2 cm from its sample, along a direction that leaves the fruit.
+    EXPECT_NEAR((t.points[i] - f.missing_surface[i]).norm(), 0.02, 1e-9);
+    EXPECT_GT(s.implicit(t.points[i]), 1.0);
+    EXPECT_LT(s.implicit(f.missing_surface[i] - 0.005 * n), 1.0);
+  }
+  p.view_side = false;
+  for (const auto& d : selectShapeTargets({f}, 300, p).directions) EXPECT_EQ(d, Eigen::Vector3d::Zero());
+}
+
+TEST(ShapeTargets, BadParametersAreRefusedByName) {
+  ShapeTargetParams p;
+  p.settled_coverage = 1.5;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p = ShapeTargetParams();
+  p.per_fruit = -1;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p = ShapeTargetParams();
+  p.offset = std::nan("");
+  try {
+    p.validate();
+    FAIL() << "a NaN offset was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("target_offset"), std::string::npos);
+  }
+}
