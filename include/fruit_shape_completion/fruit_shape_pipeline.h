@@ -67,6 +67,11 @@ class FruitShapePipeline {
   const std::vector<FruitEstimate>& fruits() const { return fruits_; }
   const PipelineStats& lastStats() const { return stats_; }
   const PipelineParams& params() const { return params_; }
+  // From the next update on; throws std::invalid_argument (nothing changed) for bad values.
+  void setParams(const PipelineParams& params) {
+    params.validate();
+    params_ = params;
+  }
   void reset();
 
  private:

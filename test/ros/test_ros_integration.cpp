@@ -1,4 +1,5 @@
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <dynamic_reconfigure/Reconfigure.h>
 #include <sensor_msgs/Image.h>
 #include <fruit_shape_completion/FilePath.h>
 #include <superellipsoid_msgs/SuperellipsoidArray.h>
@@ -29,6 +30,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <future>
 #include <sstream>
 #include <fstream>
 #include <limits>
@@ -413,6 +415,125 @@ TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
   EXPECT_EQ(count("views fed by their camera frame"), fed + 1);
   EXPECT_EQ(count("camera clock jumps back (buffer cleared)"), 1u);  // warned once, not per frame
   EXPECT_EQ(plugin->fruits().size(), 1u);
+  plugin.reset();
+}
+
+// Live settings through dynamic_reconfigure (as rqt_reconfigure and dynparam set them), and
+// the fruit report a grower opens, read back against the fruits the plugin publishes.
+TEST(Plugin, LiveSettingsThroughDynamicReconfigureAndAFruitExport) {
+  pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
+  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
+  ros::NodeHandle nh("~/live");
+  nh.setParam("superellipsoids_topic", "superellipsoids");
+  nh.setParam("camera_cloud_topic", "live_points");
+  plugin->initialize("live", nh, "world");
+  auto count = [&](const std::string& key) { return diagnosticCount(*plugin, key); };
+  const FruitOnALeaf s;
+  tf2_ros::StaticTransformBroadcaster tf;
+  std::vector<geometry_msgs::TransformStamped> poses;
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(sim::cameraPose(s.cameras[i]));
+    t.header.frame_id = "world";
+    t.child_frame_id = "live_optical_" + std::to_string(i);
+    poses.push_back(t);
+  }
+  tf.sendTransform(poses);
+  ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("live_points", 4);
+  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0; }, 10.0));
+  std::size_t frames = 0;
+  auto view = [&](std::size_t i, double t) {
+    pub.publish(ros_io::toOrganizedCloud(organizedRender(s.scene, s.cameras[i]), poses[i].child_frame_id, ros::Time(t)));
+    ++frames;
+    ASSERT_TRUE(waitFor([&] { return count("camera frames received") == frames; }, 10.0));
+    const auto coarse = roiCloud(s.scene, 1, s.cameras[i]);
+    PointList all, fruit;
+    std::size_t bad = 0;
+    std::string err;
+    ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
+    plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), t, host::ViewSource::kRoiCloud});
+  };
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) view(i, 100.0 + i);
+  plugin->update();
+  ASSERT_EQ(plugin->fruits().size(), 1u);
+  ASSERT_GT(plugin->extraTargets().size(), 10u);
+
+  // A reconfigure call, from another thread while this one spins (as from rqt).
+  auto reconfigure = [&](dynamic_reconfigure::Reconfigure srv) {
+    auto call = std::async(std::launch::async, [&] { return ros::service::call(nh.resolveName("set_parameters"), srv); });
+    EXPECT_TRUE(waitFor([&] { return call.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }, 10.0));
+    EXPECT_TRUE(call.get());
+    return srv.response.config;
+  };
+  ASSERT_TRUE(ros::service::waitForService(nh.resolveName("set_parameters"), 10000));
+  dynamic_reconfigure::Reconfigure off;
+  dynamic_reconfigure::BoolParameter targets;
+  targets.name = "shape_targets";
+  targets.value = false;
+  off.request.config.bools.push_back(targets);
+  reconfigure(off);
+  EXPECT_TRUE(plugin->extraTargets().empty()) << "shape targets still handed out after switching them off";
+  EXPECT_EQ(plugin->fruits().size(), 1u);  // fitting goes on
+  double param = 0;
+  EXPECT_TRUE(nh.getParam("target_offset", param));  // the server keeps the namespace's values
+  bool on = true;
+  EXPECT_TRUE(nh.getParam("shape_targets", on));
+  EXPECT_FALSE(on);
+
+  // A red threshold: before, a view masks the pepper's pixels; with saturation >= 255 asked
+  // for, the next view masks none.
+  const std::size_t before = count("input: fruit points masked");
+  view(0, 200.0);
+  const std::size_t red = count("input: fruit points masked") - before;
+  EXPECT_GT(red, 100u);
+  dynamic_reconfigure::Reconfigure strict;
+  dynamic_reconfigure::IntParameter saturation;
+  saturation.name = "red_min_saturation";
+  saturation.value = 255;
+  strict.request.config.ints.push_back(saturation);
+  reconfigure(strict);
+  const std::size_t after = count("input: fruit points masked");
+  view(0, 201.0);
+  EXPECT_EQ(count("input: fruit points masked") - after, 0u) << "the new red threshold did not reach the next view";
+
+  // A bad combination is refused whole: min hue above max hue.
+  dynamic_reconfigure::Reconfigure bad;
+  dynamic_reconfigure::IntParameter hue;
+  hue.name = "red_min_hue";
+  hue.value = 100;
+  bad.request.config.ints.push_back(hue);
+  const auto config = reconfigure(bad);
+  for (const auto& p : config.ints)
+    if (p.name == "red_min_hue") EXPECT_EQ(p.value, -20);
+
+  // export_fruits: one row per accepted fruit, the published fruit's numbers.
+  const std::string path = "/tmp/fruit_shape_completion_export_" + std::to_string(getpid()) + ".csv";
+  FilePath exp;
+  exp.request.file_path = path;
+  auto call = std::async(std::launch::async, [&] { return ros::service::call(nh.resolveName("export_fruits"), exp); });
+  ASSERT_TRUE(waitFor([&] { return call.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }, 10.0));
+  ASSERT_TRUE(call.get());
+  ASSERT_TRUE(exp.response.success) << exp.response.message;
+  std::ifstream in(path);
+  std::string header, row, extra;
+  std::getline(in, header);
+  std::getline(in, row);
+  EXPECT_FALSE(std::getline(in, extra) && !extra.empty());
+  EXPECT_EQ(header.rfind("id,x,y,z,volume_m3,", 0), 0u) << header;
+  std::vector<double> cells;
+  std::istringstream rs(row);
+  for (std::string c; std::getline(rs, c, ',');) cells.push_back(c.empty() ? std::nan("") : std::stod(c));
+  ASSERT_GE(cells.size(), 17u);
+  const FruitEstimate f = plugin->fruits()[0];
+  EXPECT_EQ(static_cast<int>(cells[0]), f.id);
+  EXPECT_NEAR(cells[1], f.center().x(), 1e-6);
+  EXPECT_NEAR(cells[2], f.center().y(), 1e-6);
+  EXPECT_NEAR(cells[3], f.center().z(), 1e-6);
+  EXPECT_NEAR(cells[4], f.volume, 1e-9);
+  // The views matched at the last fit (the two after it wait for the next one).
+  EXPECT_GE(cells[14], 1.0);
+  EXPECT_LE(cells[14], static_cast<double>(s.cameras.size()));
+  EXPECT_NEAR(cells[15], 100.0, 1e-6);  // the first view's stamp
+  std::remove(path.c_str());
   plugin.reset();
 }
 

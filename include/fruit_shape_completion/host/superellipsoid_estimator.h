@@ -15,6 +15,7 @@
 #include <fruit_shape_completion/tsdf_surface.h>
 
 #include <atomic>
+#include <memory>
 #include <mutex>
 
 namespace fruit_shape_completion {
@@ -28,6 +29,16 @@ struct SuperellipsoidEstimatorParams {
   PipelineParams pipeline;
   bool shape_targets = true;  // hand the predicted surface to the planner as extra targets
   ShapeTargetParams targets;   // which of it (shape_targets.h)
+};
+
+// The settings that may change while the estimator maps (cfg/Superellipsoid.cfg).
+struct EstimatorLiveParams {
+  FruitInputParams input;
+  bool shape_targets = true;
+  ShapeTargetParams targets;
+  double refit_tolerance = 0.1;
+  int max_fit_points = 300;
+  double fit_function_tolerance = 1e-6, fit_stall_tolerance = 1e-3;
 };
 
 // What the estimator has dropped since it started (or was reset), and its map's memory: the
@@ -69,6 +80,13 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   bool exportFruits(const std::string& path, std::string* error, std::string* warning = nullptr) const;
   std::map<int, FruitSightings> sightings() const;
 
+  // The live settings, as last set.
+  EstimatorLiveParams liveParams() const;
+  // Checks them all first (std::invalid_argument naming the first bad value; nothing changes),
+  // then applies the input stage's from the next view and the fit's and the targets' from the
+  // next update; shape_targets off also empties the targets handed out from now on.
+  void setLiveParams(const EstimatorLiveParams& live);
+
   // Snapshots for display and tests.
   std::vector<FruitEstimate> estimates() const;
   PointList surface() const;
@@ -80,9 +98,17 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   double lastSurfaceSeconds() const;  // surface extraction of the last update
 
  private:
-  SuperellipsoidEstimatorParams params_;
-  FruitInputStage input_stage_;  // const after construction: runs outside the locks
-  // Lock order: fit_mutex_, then map_mutex_, then results_mutex_, then sightings_mutex_.
+  SuperellipsoidEstimatorParams params_;  // the live fields change under fit_mutex_
+  const PipelineParams start_pipeline_;
+  PipelineParams pipelineWith(const EstimatorLiveParams& live) const;
+  // Swapped whole by setLiveParams; a view runs the stage it took, outside the locks.
+  std::shared_ptr<const FruitInputStage> input_stage_;
+  // Guards input_stage_, live_ and live_pending_; held briefly, never while taking another lock.
+  mutable std::mutex live_mutex_;
+  EstimatorLiveParams live_;
+  bool live_pending_ = false;  // live_ not yet applied to the fit (params_, pipeline_)
+  std::atomic<bool> targets_on_{true};
+  // Lock order: fit_mutex_, then live_mutex_ or map_mutex_, then results_mutex_, then sightings_mutex_.
   std::mutex fit_mutex_;  // one update at a time; guards pipeline_
   std::atomic<bool> cancel_{false};  // a running update returns early and stores nothing
   std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set

@@ -8,7 +8,7 @@
 #include <chrono>
 #include <iostream>
 
-#include "fruit_report.h"
+#include "fruit_text.h"
 
 using namespace fruit_shape_completion;
 

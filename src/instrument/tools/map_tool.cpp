@@ -1,7 +1,9 @@
 // map_tool: inspects a saved TSDF fruit map: its size, its surface (PLY points or mesh) and the
 // superellipsoids fitted to it.
 //   map_tool --map FILE.tsdf [--surface-out F.ply] [--mesh-out F.ply] [--fit] [--json]
+//            [--export-fruits FILE.csv|FILE.json]
 #include <fruit_shape_completion/instrument/cloud_io.h>
+#include <fruit_shape_completion/fruit_report.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/tsdf_surface.h>
 
@@ -9,12 +11,12 @@
 
 #include <iostream>
 
-#include "fruit_report.h"
+#include "fruit_text.h"
 
 using namespace fruit_shape_completion;
 
 int main(int argc, char** argv) {
-  std::string map_file, surface_out, mesh_out;
+  std::string map_file, surface_out, mesh_out, export_out;
   bool fit = false, json = false;
   CLI::App app("Inspects a saved TSDF fruit map: its size, its surface and the superellipsoids fitted to it.",
                "map_tool");
@@ -23,6 +25,9 @@ int main(int argc, char** argv) {
   app.add_option("--mesh-out", mesh_out, "PLY mesh of the surface (marching cubes)");
   app.add_flag("--fit", fit, "fit the fruits and list them");
   app.add_flag("--json", json, "one JSON object on stdout");
+  app.add_option("--export-fruits", export_out,
+                 "the fitted fruits as the plugin's export_fruits writes them (.csv or .json); a map file\n"
+                 "holds no views, so views, first_seen and last_seen stay empty");
   if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   TsdfMap map;
   std::string err;
@@ -43,9 +48,18 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::vector<FruitEstimate> fruits;
-  if (fit) {
+  if (fit || !export_out.empty()) {
     FruitShapePipeline pipeline;
     fruits = pipeline.update(surface);
+  }
+  if (!export_out.empty()) {
+    if (!writeFruitReport(export_out, fruits, {}, &err)) {
+      std::cerr << "map_tool: " << err << "\n";
+      return 1;
+    }
+    int accepted = 0;
+    for (const auto& f : fruits) accepted += f.accepted ? 1 : 0;
+    std::cerr << "map_tool: " << accepted << " fruits written to " << export_out << "\n";
   }
   if (json) {
     nlohmann::json out = {{"blocks", map.blockCount()},        {"observed_voxels", map.observedVoxelCount()},

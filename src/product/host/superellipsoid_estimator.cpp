@@ -9,8 +9,48 @@ namespace fruit_shape_completion {
 namespace host {
 
 SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params)
-    : params_(params), input_stage_(params.input), pipeline_(params.pipeline), map_(params.map),
-      surface_extractor_(params.surface), integrator_(params.integrator) {}
+    : params_(params), start_pipeline_(params.pipeline), input_stage_(std::make_shared<const FruitInputStage>(params.input)), pipeline_(params.pipeline),
+      map_(params.map), surface_extractor_(params.surface), integrator_(params.integrator) {
+  params_.targets.validate();
+  live_.input = params.input;
+  live_.shape_targets = params.shape_targets;
+  live_.targets = params.targets;
+  live_.refit_tolerance = params.pipeline.refit_tolerance;
+  live_.max_fit_points = params.pipeline.fit.max_points;
+  live_.fit_function_tolerance = params.pipeline.fit.function_tolerance;
+  live_.fit_stall_tolerance = params.pipeline.fit.stall_tolerance;
+  targets_on_ = params.shape_targets;
+}
+
+PipelineParams SuperellipsoidEstimator::pipelineWith(const EstimatorLiveParams& live) const {
+  PipelineParams pipeline = start_pipeline_;  // only the live fields differ from the start values
+  pipeline.refit_tolerance = live.refit_tolerance;
+  pipeline.fit.max_points = live.max_fit_points;
+  pipeline.fit.function_tolerance = live.fit_function_tolerance;
+  pipeline.fit.stall_tolerance = live.fit_stall_tolerance;
+  return pipeline;
+}
+
+EstimatorLiveParams SuperellipsoidEstimator::liveParams() const {
+  std::lock_guard<std::mutex> lock(live_mutex_);
+  return live_;
+}
+
+void SuperellipsoidEstimator::setLiveParams(const EstimatorLiveParams& live) {
+  live.input.validate();
+  const HsiRedTest& red = live.input.red_test;
+  if (red.min_hue > red.max_hue)
+    throw std::invalid_argument("red_min_hue (" + std::to_string(red.min_hue) + ") must not exceed red_max_hue (" +
+                                std::to_string(red.max_hue) + ")");
+  live.targets.validate();
+  pipelineWith(live).validate();
+  auto stage = std::make_shared<const FruitInputStage>(live.input);
+  std::lock_guard<std::mutex> lock(live_mutex_);
+  input_stage_ = std::move(stage);
+  live_ = live;
+  live_pending_ = true;
+  targets_on_ = live.shape_targets;
+}
 
 namespace {
 
@@ -40,7 +80,12 @@ FruitInput runInputStage(const FruitInputStage& stage, const ViewData& view) {
 
 void SuperellipsoidEstimator::insertView(const ViewData& view) {
   // The stage reads only the view and its own constant parameters: no lock while it runs.
-  FruitInput input = runInputStage(input_stage_, view);
+  std::shared_ptr<const FruitInputStage> stage;
+  {
+    std::lock_guard<std::mutex> lock(live_mutex_);
+    stage = input_stage_;
+  }
+  FruitInput input = runInputStage(*stage, view);
   if (input.ok()) {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
     sightings_.addView(view.time, input.fruit);
@@ -85,6 +130,18 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
 
 void SuperellipsoidEstimator::update() {
   std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  {
+    std::lock_guard<std::mutex> lock(live_mutex_);
+    if (live_pending_) {
+      const PipelineParams pipeline = pipelineWith(live_);
+      pipeline_.setParams(pipeline);
+      params_.pipeline = pipeline;
+      params_.input = live_.input;
+      params_.shape_targets = live_.shape_targets;
+      params_.targets = live_.targets;
+      live_pending_ = false;
+    }
+  }
   PointList surface;
   double surface_seconds = 0.0;
   {
@@ -124,11 +181,13 @@ std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const {
 }
 
 PointList SuperellipsoidEstimator::extraTargets() const {
+  if (!targets_on_) return {};
   std::lock_guard<std::mutex> lock(results_mutex_);
   return targets_.points;
 }
 
 ShapeTargets SuperellipsoidEstimator::viewTargets() const {
+  if (!targets_on_) return {};
   std::lock_guard<std::mutex> lock(results_mutex_);
   return targets_;
 }

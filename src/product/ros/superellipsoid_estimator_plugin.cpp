@@ -1,9 +1,11 @@
 // fruit_shape_completion/SuperellipsoidEstimator: the superellipsoid shape estimator as a
 // pluginlib plugin; publishes its state under its namespace after every update and offers
-// clear_map, save_map and load_map there. With camera_cloud_topic it keeps the camera's last
+// clear_map, save_map, load_map and export_fruits there, and its live settings through
+// dynamic_reconfigure (cfg/Superellipsoid.cfg). With camera_cloud_topic it keeps the camera's last
 // organized clouds and feeds the fruit map from the frame each planner view was made from
 // (full resolution, the whole fruit input stage) instead of the view's 1 cm cloud.
 #include <fruit_shape_completion/FilePath.h>
+#include <fruit_shape_completion/SuperellipsoidConfig.h>
 #include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/host/update_worker.h>
 #include <fruit_shape_completion/ros/camera_frames.h>
@@ -12,6 +14,7 @@
 #include <fruit_shape_completion/ros/upstream_messages.h>
 #include <fruit_shape_completion/shape_estimator_plugin.h>
 
+#include <dynamic_reconfigure/server.h>
 #include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
@@ -39,6 +42,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     clear_.shutdown();
     save_.shutdown();
     load_.shutdown();
+    export_.shutdown();
+    reconfigure_.reset();
     if (estimator_) estimator_->cancelUpdate();
     own_updates_.reset();
   }
@@ -75,6 +80,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     clear_ = nh.advertiseService("clear_map", &SuperellipsoidEstimatorPlugin::clearMap, this);
     save_ = nh.advertiseService("save_map", &SuperellipsoidEstimatorPlugin::saveMap, this);
     load_ = nh.advertiseService("load_map", &SuperellipsoidEstimatorPlugin::loadMap, this);
+    export_ = nh.advertiseService("export_fruits", &SuperellipsoidEstimatorPlugin::exportFruits, this);
+    // The server reads the start values the YAML put in this namespace; its first call applies
+    // them unchanged.
+    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<SuperellipsoidConfig>>(reconfigure_mutex_, nh);
+    reconfigure_->setCallback([this](SuperellipsoidConfig& config, uint32_t) { reconfigure(config); });
     if (!fruit_cloud_topic.empty() || !camera_topic.empty()) {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
@@ -352,14 +362,113 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     return true;
   }
   bool saveMap(FilePath::Request& req, FilePath::Response& res) {
-    std::string error;
-    res.success = estimator_->saveMap(req.file_path, &error);
+    std::string error, warning;
+    res.success = estimator_->saveMap(req.file_path, &error, &warning);
+    if (!warning.empty()) ROS_WARN("%s: %s", name_.c_str(), warning.c_str());
     res.message = res.success ? "saved " + req.file_path : error;
     return true;
   }
+  bool exportFruits(FilePath::Request& req, FilePath::Response& res) {
+    std::string error, warning;
+    res.success = estimator_->exportFruits(req.file_path, &error, &warning);
+    if (!warning.empty()) ROS_WARN("%s: %s", name_.c_str(), warning.c_str());
+    res.message = res.success ? "exported " + std::to_string(estimator_->fruits().size()) + " fruits to " + req.file_path
+                              : error;
+    if (!res.success) ROS_ERROR("%s: export_fruits: %s", name_.c_str(), error.c_str());
+    return true;
+  }
+  // dynamic_reconfigure: a bad combination is refused whole and the server put back to the
+  // settings in force; every accepted change is logged.
+  void reconfigure(SuperellipsoidConfig& config) {
+    const host::EstimatorLiveParams before = estimator_->liveParams();
+    host::EstimatorLiveParams p = before;
+    p.shape_targets = config.shape_targets;
+    p.targets.settled_coverage = config.target_settled_coverage;
+    p.targets.per_fruit = config.targets_per_fruit;
+    p.targets.offset = config.target_offset;
+    p.targets.view_side = config.target_view_side;
+    p.input.red_test.min_hue = config.red_min_hue;
+    p.input.red_test.max_hue = config.red_max_hue;
+    p.input.red_test.min_saturation = config.red_min_saturation;
+    p.input.red_test.min_intensity = config.red_min_intensity;
+    p.input.drop_depth_edges = config.drop_depth_edges;
+    p.input.depth_edges.absolute = config.depth_edge_absolute;
+    p.input.depth_edges.relative = config.depth_edge_relative;
+    p.input.drop_veil_points = config.drop_veil_points;
+    p.input.veil_radius = config.veil_radius;
+    p.input.veil_angle_deg = config.veil_angle_deg;
+    p.input.remove_outliers = config.input_remove_outliers;
+    p.input.outliers.k = config.input_outlier_k;
+    p.input.outliers.std_mul = config.input_outlier_std_mul;
+    p.input.outliers.search_radius = config.input_outlier_radius;
+    p.refit_tolerance = config.refit_tolerance;
+    p.max_fit_points = config.max_fit_points;
+    p.fit_function_tolerance = config.fit_function_tolerance;
+    p.fit_stall_tolerance = config.fit_stall_tolerance;
+    try {
+      estimator_->setLiveParams(p);
+    } catch (const std::invalid_argument& e) {
+      ROS_ERROR("%s: reconfigure refused, settings unchanged: %s", name_.c_str(), e.what());
+      config = configOf(before);
+      return;
+    }
+    const std::string changed = describeChanges(configOf(before), config);
+    if (!changed.empty()) ROS_INFO("%s: reconfigured (from the next view or fit): %s", name_.c_str(), changed.c_str());
+  }
+  static SuperellipsoidConfig configOf(const host::EstimatorLiveParams& p) {
+    SuperellipsoidConfig c = SuperellipsoidConfig::__getDefault__();
+    c.shape_targets = p.shape_targets;
+    c.target_settled_coverage = p.targets.settled_coverage;
+    c.targets_per_fruit = p.targets.per_fruit;
+    c.target_offset = p.targets.offset;
+    c.target_view_side = p.targets.view_side;
+    c.red_min_hue = p.input.red_test.min_hue;
+    c.red_max_hue = p.input.red_test.max_hue;
+    c.red_min_saturation = p.input.red_test.min_saturation;
+    c.red_min_intensity = p.input.red_test.min_intensity;
+    c.drop_depth_edges = p.input.drop_depth_edges;
+    c.depth_edge_absolute = p.input.depth_edges.absolute;
+    c.depth_edge_relative = p.input.depth_edges.relative;
+    c.drop_veil_points = p.input.drop_veil_points;
+    c.veil_radius = p.input.veil_radius;
+    c.veil_angle_deg = p.input.veil_angle_deg;
+    c.input_remove_outliers = p.input.remove_outliers;
+    c.input_outlier_k = p.input.outliers.k;
+    c.input_outlier_std_mul = p.input.outliers.std_mul;
+    c.input_outlier_radius = p.input.outliers.search_radius;
+    c.refit_tolerance = p.refit_tolerance;
+    c.max_fit_points = p.max_fit_points;
+    c.fit_function_tolerance = p.fit_function_tolerance;
+    c.fit_stall_tolerance = p.fit_stall_tolerance;
+    return c;
+  }
+  // "name old -> new" for each parameter that differs.
+  static std::string describeChanges(const SuperellipsoidConfig& a, const SuperellipsoidConfig& b) {
+    std::string out;
+    for (const auto& param : SuperellipsoidConfig::__getParamDescriptions__()) {
+      boost::any va, vb;
+      param->getValue(a, va);
+      param->getValue(b, vb);
+      const std::string sa = anyToString(va), sb = anyToString(vb);
+      if (sa != sb) out += (out.empty() ? "" : ", ") + param->name + " " + sa + " -> " + sb;
+    }
+    return out;
+  }
+  static std::string anyToString(const boost::any& v) {
+    if (const bool* b = boost::any_cast<bool>(&v)) return *b ? "true" : "false";
+    if (const int* i = boost::any_cast<int>(&v)) return std::to_string(*i);
+    if (const double* d = boost::any_cast<double>(&v)) {
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%g", *d);
+      return buf;
+    }
+    if (const std::string* s = boost::any_cast<std::string>(&v)) return *s;
+    return "?";
+  }
   bool loadMap(FilePath::Request& req, FilePath::Response& res) {
-    std::string error;
-    res.success = estimator_->loadMap(req.file_path, &error);
+    std::string error, warning;
+    res.success = estimator_->loadMap(req.file_path, &error, &warning);
+    if (!warning.empty()) ROS_WARN("%s: %s", name_.c_str(), warning.c_str());
     if (res.success) own_updates_->request();
     res.message = res.success ? "loaded " + req.file_path : error;
     return true;
@@ -382,7 +491,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::atomic<double> last_update_{0.0};  // wall time of the last update [s]
   std::mutex publish_mutex_;  // orders publishing after an update with a reset's
   std::unique_ptr<host::UpdateWorker> own_updates_;
-  ros::ServiceServer clear_, save_, load_;
+  ros::ServiceServer clear_, save_, load_, export_;
+  boost::recursive_mutex reconfigure_mutex_;
+  std::unique_ptr<dynamic_reconfigure::Server<SuperellipsoidConfig>> reconfigure_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   ros::Subscriber fruit_cloud_;

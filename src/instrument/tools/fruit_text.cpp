@@ -1,4 +1,4 @@
-#include "fruit_report.h"
+#include "fruit_text.h"
 
 #include <cmath>
 #include <cstdio>

@@ -1,0 +1,143 @@
+// The grower's fruit report (fruit_report.h), the views that saw each fruit
+// (fruit_sightings.h) and the clean-up of a killed save's temporaries (atomic_file.h).
+#include <fruit_shape_completion/atomic_file.h>
+#include <fruit_shape_completion/fruit_report.h>
+#include <fruit_shape_completion/fruit_sightings.h>
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+using namespace fruit_shape_completion;
+namespace fs = std::filesystem;
+
+namespace {
+
+FruitEstimate fruit(int id, const Eigen::Vector3d& c, double r, bool accepted = true) {
+  FruitEstimate f;
+  f.id = id;
+  f.shape = Superellipsoid::sphere(r, c);
+  f.volume = f.shape.volume();
+  f.accepted = accepted;
+  f.n_points = 100 + id;
+  return f;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    char tmpl[] = "/tmp/fruit_report_testXXXXXX";
+    path = mkdtemp(tmpl);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+}  // namespace
+
+TEST(FruitReport, CsvAndJsonHoldOneRowPerAcceptedFruitThatReadsBack) {
+  TempDir dir;
+  const std::vector<FruitEstimate> fruits = {fruit(3, {0.1, 0.2, 0.5}, 0.04), fruit(5, {-0.3, 0.0, 0.7}, 0.03, false),
+                                             fruit(7, {0.4, -0.1, 0.6}, 0.035)};
+  std::map<int, FruitSightings> seen;
+  seen[3] = {4, 1.5, 9.25};
+  std::string error;
+  const std::string csv = (dir.path / "fruits.csv").string();
+  ASSERT_TRUE(writeFruitReport(csv, fruits, seen, &error)) << error;
+  std::istringstream lines(slurp(csv));
+  std::string header, row3, row7, extra;
+  std::getline(lines, header);
+  std::getline(lines, row3);
+  std::getline(lines, row7);
+  EXPECT_FALSE(std::getline(lines, extra)) << "a row for the rejected fruit: " << extra;
+  EXPECT_EQ(header.rfind("id,x,y,z,volume_m3,a,b,c,e1,e2,roll,pitch,yaw,points,views,first_seen,last_seen", 0), 0u);
+  std::vector<std::string> cells;
+  std::istringstream r3(row3);
+  for (std::string cell; std::getline(r3, cell, ',');) cells.push_back(cell);
+  ASSERT_EQ(cells.size(), fruitReportColumns().size());
+  EXPECT_EQ(cells[0], "3");
+  EXPECT_NEAR(std::stod(cells[1]), 0.1, 1e-9);
+  EXPECT_NEAR(std::stod(cells[4]), fruits[0].volume, 1e-12);
+  EXPECT_EQ(cells[13], "103");
+  EXPECT_EQ(cells[14], "4");
+  EXPECT_NEAR(std::stod(cells[15]), 1.5, 1e-9);
+  EXPECT_NEAR(std::stod(cells[16]), 9.25, 1e-9);
+  // A fruit no view was matched to: 0 views, no stamps (empty cells).
+  EXPECT_NE(row7.find(",0,,"), std::string::npos) << row7;
+
+  const std::string json = (dir.path / "fruits.json").string();
+  ASSERT_TRUE(writeFruitReport(json, fruits, seen, &error)) << error;
+  const auto j = nlohmann::json::parse(slurp(json));
+  ASSERT_EQ(j["fruits"].size(), 2u);
+  EXPECT_EQ(j["fruits"][0]["id"], 3);
+  EXPECT_NEAR(j["fruits"][1]["volume_m3"].get<double>(), fruits[2].volume, 1e-12);
+  EXPECT_TRUE(j["fruits"][1]["first_seen"].is_null());
+
+  EXPECT_FALSE(writeFruitReport((dir.path / "fruits.txt").string(), fruits, seen, &error));
+  EXPECT_NE(error.find(".csv or .json"), std::string::npos) << error;
+  EXPECT_FALSE(writeFruitReport("/nonexistent-dir/fruits.csv", fruits, seen, &error));
+}
+
+TEST(FruitSightings, ViewsCountForTheFruitsTheirPointsFellOnIncludingViewsBeforeTheFirstFit) {
+  const FruitEstimate a = fruit(1, {0, 0, 0.5}, 0.04), b = fruit(2, {0.3, 0, 0.5}, 0.04);
+  auto pointsOn = [](const FruitEstimate& f, int n) {
+    PointList out;
+    for (const auto& p : f.shape.sampleSurface(n)) out.push_back(p);
+    return out;
+  };
+  FruitSightingLog log(8, 64);
+  log.addView(1.0, pointsOn(a, 100));  // before any fit
+  log.update({a});
+  log.addView(2.0, pointsOn(b, 100));  // b seen; b is fitted only at the next update
+  log.addView(3.0, pointsOn(a, 2));    // two points: not enough to count
+  log.update({a, b});
+  log.addView(4.0, pointsOn(a, 100));
+  PointList both = pointsOn(a, 50);
+  for (const auto& p : pointsOn(b, 50)) both.push_back(p);
+  log.addView(5.0, both);
+  log.update({a, b});
+  const auto s = log.sightings();
+  ASSERT_EQ(s.count(1), 1u);
+  ASSERT_EQ(s.count(2), 1u);
+  EXPECT_EQ(s.at(1).views, 3);
+  EXPECT_DOUBLE_EQ(s.at(1).first_seen, 1.0);
+  EXPECT_DOUBLE_EQ(s.at(1).last_seen, 5.0);
+  EXPECT_EQ(s.at(2).views, 2);
+  EXPECT_DOUBLE_EQ(s.at(2).first_seen, 2.0);
+  EXPECT_DOUBLE_EQ(s.at(2).last_seen, 5.0);
+  log.clear();
+  EXPECT_TRUE(log.sightings().empty());
+}
+
+TEST(AtomicFile, AKilledSavesTemporaryIsRemovedOnceOldAndOthersAreLeftAlone) {
+  TempDir dir;
+  const std::string target = (dir.path / "map.tsdf").string();
+  std::string error;
+  ASSERT_TRUE(writeFileAtomically(target, "old", &error)) << error;
+  const fs::path stale = target + ".tmpAb12Cd", fresh = target + ".tmpZz99Yy", other = dir.path / "map.tsdf.bak",
+                 other_target = dir.path / "other.tsdf.tmpAb12Cd";
+  for (const auto& p : {stale, fresh, other, other_target}) std::ofstream(p) << "partial";
+  fs::last_write_time(stale, fs::file_time_type::clock::now() - std::chrono::minutes(5));
+  fs::last_write_time(other_target, fs::file_time_type::clock::now() - std::chrono::minutes(5));
+  const std::vector<std::string> removed = removeStaleTemporaries(target);
+  ASSERT_EQ(removed.size(), 1u);
+  EXPECT_EQ(removed[0], stale.string());
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_TRUE(fs::exists(fresh));  // a write that may still be running
+  EXPECT_TRUE(fs::exists(other));
+  EXPECT_TRUE(fs::exists(other_target));
+  EXPECT_EQ(slurp(target), "old");
+  EXPECT_EQ(removeStaleTemporaries(target, 0.0).size(), 1u);  // the fresh one, once old enough
+  EXPECT_TRUE(removeStaleTemporaries((dir.path / "missing" / "x.tsdf").string()).empty());
+}
