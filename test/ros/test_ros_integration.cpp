@@ -144,6 +144,31 @@ void setOneEstimator(const ros::NodeHandle& nh, const std::string& name, const s
   nh.setParam("shape_estimators", list);
 }
 
+// A SuperellipsoidEstimator plugin in ~/<name> fed by the camera clouds on <name>_points.
+std::unique_ptr<ShapeEstimatorPlugin> cameraPlugin(pluginlib::ClassLoader<ShapeEstimatorPlugin>& loader,
+                                                   const std::string& name, ros::NodeHandle* nh) {
+  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
+  *nh = ros::NodeHandle("~/" + name);
+  nh->setParam("superellipsoids_topic", "superellipsoids");
+  nh->setParam("camera_cloud_topic", name + "_points");
+  plugin->initialize(name, *nh, "world");
+  return plugin;
+}
+
+// The scene's camera poses as static tf frames <prefix>0, <prefix>1, ... in "world".
+std::vector<geometry_msgs::TransformStamped> sendCameraPoses(const FruitOnALeaf& s, const std::string& prefix,
+                                                             tf2_ros::StaticTransformBroadcaster* tf) {
+  std::vector<geometry_msgs::TransformStamped> poses;
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(sim::cameraPose(s.cameras[i]));
+    t.header.frame_id = "world";
+    t.child_frame_id = prefix + std::to_string(i);
+    poses.push_back(t);
+  }
+  tf->sendTransform(poses);
+  return poses;
+}
+
 }  // namespace
 
 TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUnseenSide) {
@@ -353,22 +378,12 @@ TEST(Plugin, FullResolutionFruitCloudTopicFeedsTheMapInsteadOfThePlannersViews) 
 
 TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
-  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
-  ros::NodeHandle nh("~/camera");
-  nh.setParam("superellipsoids_topic", "superellipsoids");
-  nh.setParam("camera_cloud_topic", "camera_points");
-  plugin->initialize("camera", nh, "world");
+  ros::NodeHandle nh;
+  std::unique_ptr<ShapeEstimatorPlugin> plugin = cameraPlugin(loader, "camera", &nh);
   auto count = [&](const std::string& key) { return diagnosticCount(*plugin, key); };
   const FruitOnALeaf s;
   tf2_ros::StaticTransformBroadcaster tf;
-  std::vector<geometry_msgs::TransformStamped> poses;
-  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
-    geometry_msgs::TransformStamped t = tf2::eigenToTransform(sim::cameraPose(s.cameras[i]));
-    t.header.frame_id = "world";
-    t.child_frame_id = "camera_optical_" + std::to_string(i);
-    poses.push_back(t);
-  }
-  tf.sendTransform(poses);
+  const auto poses = sendCameraPoses(s, "camera_optical_", &tf);
   ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("camera_points", 4);
   ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0; }, 10.0));
   // Each planner view (pointcloud_roi's 1 cm cloud, stamped as the camera frame it came from)
@@ -422,22 +437,12 @@ TEST(Plugin, CameraFramesPairedWithThePlannersViewsFeedTheMapAtFullResolution) {
 // the fruit report a grower opens, read back against the fruits the plugin publishes.
 TEST(Plugin, LiveSettingsThroughDynamicReconfigureAndAFruitExport) {
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
-  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
-  ros::NodeHandle nh("~/live");
-  nh.setParam("superellipsoids_topic", "superellipsoids");
-  nh.setParam("camera_cloud_topic", "live_points");
-  plugin->initialize("live", nh, "world");
+  ros::NodeHandle nh;
+  std::unique_ptr<ShapeEstimatorPlugin> plugin = cameraPlugin(loader, "live", &nh);
   auto count = [&](const std::string& key) { return diagnosticCount(*plugin, key); };
   const FruitOnALeaf s;
   tf2_ros::StaticTransformBroadcaster tf;
-  std::vector<geometry_msgs::TransformStamped> poses;
-  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
-    geometry_msgs::TransformStamped t = tf2::eigenToTransform(sim::cameraPose(s.cameras[i]));
-    t.header.frame_id = "world";
-    t.child_frame_id = "live_optical_" + std::to_string(i);
-    poses.push_back(t);
-  }
-  tf.sendTransform(poses);
+  const auto poses = sendCameraPoses(s, "live_optical_", &tf);
   ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("live_points", 4);
   ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0; }, 10.0));
   std::size_t frames = 0;

@@ -382,29 +382,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void reconfigure(SuperellipsoidConfig& config) {
     const host::EstimatorLiveParams before = estimator_->liveParams();
     host::EstimatorLiveParams p = before;
-    p.shape_targets = config.shape_targets;
-    p.targets.settled_coverage = config.target_settled_coverage;
-    p.targets.per_fruit = config.targets_per_fruit;
-    p.targets.offset = config.target_offset;
-    p.targets.view_side = config.target_view_side;
-    p.input.red_test.min_hue = config.red_min_hue;
-    p.input.red_test.max_hue = config.red_max_hue;
-    p.input.red_test.min_saturation = config.red_min_saturation;
-    p.input.red_test.min_intensity = config.red_min_intensity;
-    p.input.drop_depth_edges = config.drop_depth_edges;
-    p.input.depth_edges.absolute = config.depth_edge_absolute;
-    p.input.depth_edges.relative = config.depth_edge_relative;
-    p.input.drop_veil_points = config.drop_veil_points;
-    p.input.veil_radius = config.veil_radius;
-    p.input.veil_angle_deg = config.veil_angle_deg;
-    p.input.remove_outliers = config.input_remove_outliers;
-    p.input.outliers.k = config.input_outlier_k;
-    p.input.outliers.std_mul = config.input_outlier_std_mul;
-    p.input.outliers.search_radius = config.input_outlier_radius;
-    p.refit_tolerance = config.refit_tolerance;
-    p.max_fit_points = config.max_fit_points;
-    p.fit_function_tolerance = config.fit_function_tolerance;
-    p.fit_stall_tolerance = config.fit_stall_tolerance;
+    pairLiveFields(config, p, [](const auto& from_config, auto& to_live) { to_live = from_config; });
     try {
       estimator_->setLiveParams(p);
     } catch (const std::invalid_argument& e) {
@@ -415,32 +393,37 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     const std::string changed = describeChanges(configOf(before), config);
     if (!changed.empty()) ROS_INFO("%s: reconfigured (from the next view or fit): %s", name_.c_str(), changed.c_str());
   }
-  static SuperellipsoidConfig configOf(const host::EstimatorLiveParams& p) {
+  static SuperellipsoidConfig configOf(host::EstimatorLiveParams p) {
     SuperellipsoidConfig c = SuperellipsoidConfig::__getDefault__();
-    c.shape_targets = p.shape_targets;
-    c.target_settled_coverage = p.targets.settled_coverage;
-    c.targets_per_fruit = p.targets.per_fruit;
-    c.target_offset = p.targets.offset;
-    c.target_view_side = p.targets.view_side;
-    c.red_min_hue = p.input.red_test.min_hue;
-    c.red_max_hue = p.input.red_test.max_hue;
-    c.red_min_saturation = p.input.red_test.min_saturation;
-    c.red_min_intensity = p.input.red_test.min_intensity;
-    c.drop_depth_edges = p.input.drop_depth_edges;
-    c.depth_edge_absolute = p.input.depth_edges.absolute;
-    c.depth_edge_relative = p.input.depth_edges.relative;
-    c.drop_veil_points = p.input.drop_veil_points;
-    c.veil_radius = p.input.veil_radius;
-    c.veil_angle_deg = p.input.veil_angle_deg;
-    c.input_remove_outliers = p.input.remove_outliers;
-    c.input_outlier_k = p.input.outliers.k;
-    c.input_outlier_std_mul = p.input.outliers.std_mul;
-    c.input_outlier_radius = p.input.outliers.search_radius;
-    c.refit_tolerance = p.refit_tolerance;
-    c.max_fit_points = p.max_fit_points;
-    c.fit_function_tolerance = p.fit_function_tolerance;
-    c.fit_stall_tolerance = p.fit_stall_tolerance;
+    pairLiveFields(c, p, [](auto& to_config, const auto& from_live) { to_config = from_live; });
     return c;
+  }
+  // Calls assign(config field, live field) for every live setting: one list for both ways.
+  template <typename Assign>
+  static void pairLiveFields(SuperellipsoidConfig& c, host::EstimatorLiveParams& p, Assign&& assign) {
+    assign(c.shape_targets, p.shape_targets);
+    assign(c.target_settled_coverage, p.targets.settled_coverage);
+    assign(c.targets_per_fruit, p.targets.per_fruit);
+    assign(c.target_offset, p.targets.offset);
+    assign(c.target_view_side, p.targets.view_side);
+    assign(c.red_min_hue, p.input.red_test.min_hue);
+    assign(c.red_max_hue, p.input.red_test.max_hue);
+    assign(c.red_min_saturation, p.input.red_test.min_saturation);
+    assign(c.red_min_intensity, p.input.red_test.min_intensity);
+    assign(c.drop_depth_edges, p.input.drop_depth_edges);
+    assign(c.depth_edge_absolute, p.input.depth_edges.absolute);
+    assign(c.depth_edge_relative, p.input.depth_edges.relative);
+    assign(c.drop_veil_points, p.input.drop_veil_points);
+    assign(c.veil_radius, p.input.veil_radius);
+    assign(c.veil_angle_deg, p.input.veil_angle_deg);
+    assign(c.input_remove_outliers, p.input.remove_outliers);
+    assign(c.input_outlier_k, p.input.outliers.k);
+    assign(c.input_outlier_std_mul, p.input.outliers.std_mul);
+    assign(c.input_outlier_radius, p.input.outliers.search_radius);
+    assign(c.refit_tolerance, p.refit_tolerance);
+    assign(c.max_fit_points, p.max_fit_points);
+    assign(c.fit_function_tolerance, p.fit_function_tolerance);
+    assign(c.fit_stall_tolerance, p.fit_stall_tolerance);
   }
   // "name old -> new" for each parameter that differs.
   static std::string describeChanges(const SuperellipsoidConfig& a, const SuperellipsoidConfig& b) {
