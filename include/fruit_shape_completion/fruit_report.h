@@ -1,6 +1,6 @@
 #pragma once
 // What a grower opens at the end of a run: one row per accepted fruit with its position,
-// volume, shape, how many points and views it rests on and when it was first and last seen,
+// volume, shape (angles in degrees, as superellipsoid_msgs/Superellipsoid has them), how many points and views it rests on and when it was first and last seen,
 // as CSV or JSON, written atomically (a kill mid-write leaves the previous file).
 #include <fruit_shape_completion/fruit_estimate.h>
 

@@ -457,9 +457,14 @@ TEST(Plugin, LiveSettingsThroughDynamicReconfigureAndAFruitExport) {
     ASSERT_TRUE(ros_io::fromRoiCloud(coarse.cloud, coarse.roi_indices, &all, &fruit, &bad, &err));
     plugin->insertView({fruit, all, tf2::transformToEigen(coarse.transform), t, host::ViewSource::kRoiCloud});
   };
+  superellipsoid_msgs::SuperellipsoidArray published;
+  ros::Subscriber sub = nh.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
+      "superellipsoids", 2, [&](const superellipsoid_msgs::SuperellipsoidArray::ConstPtr& m) { published = *m; });
   for (std::size_t i = 0; i < s.cameras.size(); ++i) view(i, 100.0 + i);
+  ASSERT_TRUE(waitFor([&] { return sub.getNumPublishers() > 0; }, 10.0));
   plugin->update();
   ASSERT_EQ(plugin->fruits().size(), 1u);
+  ASSERT_TRUE(waitFor([&] { return published.superellipsoids.size() == 1; }, 10.0));
   ASSERT_GT(plugin->extraTargets().size(), 10u);
 
   // A reconfigure call, from another thread while this one spins (as from rqt).
@@ -510,7 +515,7 @@ TEST(Plugin, LiveSettingsThroughDynamicReconfigureAndAFruitExport) {
   for (const auto& p : config.ints)
     if (p.name == "red_min_hue") EXPECT_EQ(p.value, -20);
 
-  // export_fruits: one row per accepted fruit, the published fruit's numbers.
+  // export_fruits: one row per accepted fruit, the published superellipsoid's numbers.
   const std::string path = "/tmp/fruit_shape_completion_export_" + std::to_string(getpid()) + ".csv";
   FilePath exp;
   exp.request.file_path = path;
@@ -528,12 +533,15 @@ TEST(Plugin, LiveSettingsThroughDynamicReconfigureAndAFruitExport) {
   std::istringstream rs(row);
   for (std::string c; std::getline(rs, c, ',');) cells.push_back(c.empty() ? std::nan("") : std::stod(c));
   ASSERT_GE(cells.size(), 17u);
-  const FruitEstimate f = plugin->fruits()[0];
-  EXPECT_EQ(static_cast<int>(cells[0]), f.id);
-  EXPECT_NEAR(cells[1], f.center().x(), 1e-6);
-  EXPECT_NEAR(cells[2], f.center().y(), 1e-6);
-  EXPECT_NEAR(cells[3], f.center().z(), 1e-6);
-  EXPECT_NEAR(cells[4], f.volume, 1e-9);
+  const superellipsoid_msgs::Superellipsoid& m = published.superellipsoids[0];
+  EXPECT_EQ(static_cast<unsigned>(cells[0]), m.id);
+  EXPECT_NEAR(cells[1], m.tx, 1e-6);
+  EXPECT_NEAR(cells[2], m.ty, 1e-6);
+  EXPECT_NEAR(cells[3], m.tz, 1e-6);
+  EXPECT_NEAR(cells[4], m.volume, 1e-9);
+  EXPECT_NEAR(cells[5], m.a, 1e-6);
+  EXPECT_NEAR(cells[9], m.e2, 1e-6);
+  EXPECT_NEAR(cells[12], m.yaw, 1e-4);
   // The views matched at the last fit (the two after it wait for the next one).
   EXPECT_GE(cells[14], 1.0);
   EXPECT_LE(cells[14], static_cast<double>(s.cameras.size()));

@@ -52,10 +52,11 @@ bool writeFruitReport(const std::string& path, const std::vector<FruitEstimate>&
     const auto it = sightings.find(f.id);
     const FruitSightings seen = it == sightings.end() ? FruitSightings() : it->second;
     const Superellipsoid& s = f.shape;
+    const double deg = 180.0 / M_PI;  // as superellipsoid_msgs/Superellipsoid
     const std::vector<std::string> values = {
         std::to_string(f.id), number(s.t.x(), json), number(s.t.y(), json), number(s.t.z(), json),
         number(f.volume, json), number(s.a, json), number(s.b, json), number(s.c, json), number(s.e1, json),
-        number(s.e2, json), number(s.rpy.x(), json), number(s.rpy.y(), json), number(s.rpy.z(), json),
+        number(s.e2, json), number(s.rpy.x() * deg, json), number(s.rpy.y() * deg, json), number(s.rpy.z() * deg, json),
         std::to_string(f.n_points), std::to_string(seen.views), number(seen.first_seen, json),
         number(seen.last_seen, json)};
     if (json) {
