@@ -5,7 +5,8 @@
 // blurred outlines (points at a view's rim dragged away from the camera, as the paper's 3 x 3
 // depth blur does), 0-5 % outliers, and sometimes a touching neighbour. Per coverage bin: mean,
 // 5th percentile and worst volume accuracy, centre error, fit time.
-//   fit_stress [--fruits N] [--seed S] [--json FILE]
+//   fit_stress [--fruits N] [--seed S] [--json FILE] [--max-fit-points N] [--stall-tolerance T]
+//              [--function-tolerance T] [--refit-tolerance T]
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <fruit_shape_completion/neighbour_grid.h>
@@ -141,7 +142,7 @@ PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, doub
   return out;
 }
 
-Outcome run(const Case& c, std::mt19937& rng) {
+Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng) {
   Outcome o;
   PointList cloud = scan(c.fruit, c.views, c.noise, c.blur, rng, &o.coverage);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -158,7 +159,7 @@ Outcome run(const Case& c, std::mt19937& rng) {
   const int n_out = static_cast<int>(c.outliers * own);
   for (int i = 0; i < n_out; ++i)  // stray surface points within 3 cm of the fruit's outline
     cloud.push_back(c.fruit.center + (0.5 * c.diameter + 0.03) * Eigen::Vector3d{u(rng), u(rng), u(rng)});
-  FruitShapePipeline pipeline;
+  FruitShapePipeline pipeline(params);
   const auto start = std::chrono::steady_clock::now();
   const std::vector<FruitEstimate> fruits = pipeline.update(cloud);
   o.fit_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -189,11 +190,23 @@ int main(int argc, char** argv) {
   int n = 600;
   unsigned seed = 1;
   std::string json_out;
+  PipelineParams params;
   CLI::App app("The fit's tails on random fruits through the whole pipeline, per coverage bin.", "fit_stress");
   app.add_option("--fruits", n, "random fruits")->check(CLI::Range(1, 100000))->capture_default_str();
   app.add_option("--seed", seed, "seed of the draw")->capture_default_str();
   app.add_option("--json", json_out, "write every fruit and the bins as JSON");
+  app.add_option("--max-fit-points", params.fit.max_points, "the fit's max_fit_points (0: all)")->capture_default_str();
+  app.add_option("--stall-tolerance", params.fit.stall_tolerance, "the fit's fit_stall_tolerance")->capture_default_str();
+  app.add_option("--function-tolerance", params.fit.function_tolerance, "the fit's fit_function_tolerance")
+      ->capture_default_str();
+  app.add_option("--refit-tolerance", params.refit_tolerance, "the pipeline's refit_tolerance")->capture_default_str();
   if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
+  try {
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "fit_stress: " << e.what() << "\n";
+    return 2;
+  }
   std::mt19937 rng(seed);
   struct Row {
     Case c;
@@ -202,7 +215,7 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   for (int i = 0; i < n; ++i) {
     Case c = randomCase(i, rng);
-    Outcome o = run(c, rng);
+    Outcome o = run(c, params, rng);
     rows.push_back({std::move(c), o});
   }
   const std::vector<std::pair<double, double>> bins = {{0.0, 0.35}, {0.35, 0.6}, {0.6, 0.85}, {0.85, 1.01}};
