@@ -112,6 +112,8 @@ class FruitShapePipeline {
   // The predicted unseen surface of an accepted fruit (none otherwise).
   void predictMissing(FruitEstimate* estimate);
   int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
+  // The occupied 1 cm cells of the points (how clusters are matched between updates).
+  static std::unordered_set<std::uint64_t> occupiedCells(const PointList& points);
   // The previous fruit the changed cluster's points still fit (see refit_tolerance), or -1.
   int stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
                        const std::vector<char>& reused) const;

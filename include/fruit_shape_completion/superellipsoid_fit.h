@@ -3,6 +3,7 @@
 // Levenberg-Marquardt, minimising
 //   sum_i d_i^2 + N alpha |t - w|^2 + N gamma ((a-b)^2 + (b-c)^2 + (c-a)^2)
 // d_i the radial distance of point i, w the centre prior, N the number of points.
+#include <fruit_shape_completion/radial_residuals.h>
 #include <fruit_shape_completion/superellipsoid.h>
 
 #include <Eigen/Dense>
@@ -56,15 +57,5 @@ struct FitResult {
 // paper's start: a = b = c = initial_axis, e1 = e2 = initial_e, t = center_prior, rpy = 0.
 FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& center_prior,
                             const FitParams& params, const Superellipsoid* initial = nullptr);
-
-// The fit's data term for inspection and tests: the signed radial residuals of the points and
-// (if J is given) their N x 11 Jacobian, columns a, b, c, e1, e2, tx, ty, tz, roll, pitch, yaw.
-void evaluateRadialResiduals(const PointList& points, const Superellipsoid& shape,
-                             Eigen::VectorXd* residuals, Eigen::MatrixXd* J);
-
-// The radial distances of many points at once (vectorised; Superellipsoid::radialDistance is the
-// one-point form), and their RMS (0 for no points).
-Eigen::VectorXd radialDistances(const PointList& points, const Superellipsoid& shape);
-double rmsRadialDistance(const PointList& points, const Superellipsoid& shape);
 
 }  // namespace fruit_shape_completion

@@ -1,0 +1,196 @@
+// Touching fruits: a cluster that no superellipsoid fits is split in two (recursively), and a
+// cluster split before is split again along its previous fits (FruitShapePipeline's
+// estimateWithSplit and splitAsBefore; the rest of the pipeline is in fruit_shape_pipeline.cpp).
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace fruit_shape_completion {
+
+std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
+    const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused,
+    std::vector<Eigen::Vector3d>* normals_out, std::optional<FruitEstimate>* whole_out) {
+  // The previous fruits the cluster shares cells with: all parts of one split, all accepted.
+  std::vector<int> parts;
+  for (std::size_t k = 0; k < tracks_.size(); ++k)
+    for (auto cell : tracks_[k].cells)
+      if (cells.count(cell)) {
+        parts.push_back(static_cast<int>(k));
+        break;
+      }
+  if (parts.size() < 2) return {};
+  const Track& first = tracks_[parts.front()];
+  if (first.split_points == 0) return {};
+  std::size_t same_split = 0;
+  for (const auto& t : tracks_)
+    same_split += t.cluster_signature == first.cluster_signature && t.cluster_points == first.cluster_points;
+  if (same_split != parts.size()) return {};
+  for (int k : parts) {
+    const Track& t = tracks_[k];
+    if (reused[k] || !t.estimate.accepted || t.split_points != first.split_points ||
+        t.cluster_signature != first.cluster_signature || t.cluster_points != first.cluster_points)
+      return {};
+  }
+  std::vector<Eigen::Vector3d>& normals = *normals_out;  // of the whole cluster, once a fit needs them
+  // Once the cluster has grown this much since the split was decided, the whole cluster is
+  // fitted again first, so that a fruit split in error merges when more of it is seen.
+  constexpr double kSplitRecheckGrowth = 0.25;
+  const bool recheck =
+      static_cast<double>(points.size()) > (1.0 + kSplitRecheckGrowth) * static_cast<double>(first.split_points);
+  if (recheck) {
+    normals = normalsOf(points);
+    *whole_out = estimateCluster(points, normals, -1, &tracks_[static_cast<std::size_t>(bestOverlap(cells))]);
+    ++stats_.fitted;
+    if ((*whole_out)->accepted) {
+      Track whole;
+      whole.estimate = **whole_out;
+      whole.fitted_points = points.size();
+      whole.cells = cells;
+      return {whole};
+    }
+  }
+  // Each point to the part whose fit explains it better.
+  std::vector<Eigen::VectorXd> distance;
+  for (int k : parts) distance.push_back(radialDistances(points, tracks_[k].estimate.shape));
+  std::vector<std::size_t> label(points.size(), 0);
+  std::vector<PointList> part_points(parts.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::size_t& best = label[i];
+    for (std::size_t j = 1; j < parts.size(); ++j)
+      if (distance[j][static_cast<Eigen::Index>(i)] < distance[best][static_cast<Eigen::Index>(i)]) best = j;
+    part_points[best].push_back(points[i]);
+  }
+  std::vector<Track> out;
+  int kept = 0;
+  for (std::size_t j = 0; j < parts.size(); ++j) {
+    const Track& previous = tracks_[parts[j]];
+    const PointList& pts = part_points[j];
+    if (static_cast<int>(pts.size()) < params_.clustering.min_size) return {};
+    Track t;
+    t.split_points = recheck ? points.size() : previous.split_points;
+    t.cells = occupiedCells(pts);
+    if (stillFits(previous.estimate, previous.fitted_points, pts)) {
+      t.estimate = keptEstimate(previous.estimate, pts);
+      t.fitted_points = previous.fitted_points;
+      ++kept;
+    } else {
+      if (normals.empty()) normals = normalsOf(points);
+      std::vector<Eigen::Vector3d> part_normals;
+      for (std::size_t i = 0; i < points.size(); ++i)
+        if (label[i] == j) part_normals.push_back(normals[i]);
+      t.estimate = estimateCluster(pts, part_normals, -1, &previous);
+      ++stats_.fitted;
+      if (!t.estimate.accepted) return {};
+      t.fitted_points = pts.size();
+    }
+    out.push_back(std::move(t));
+  }
+  stats_.kept += kept;
+  ++stats_.splits;
+  return out;
+}
+
+FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList& points,
+                                                                const std::vector<Eigen::Vector3d>& normals, int depth,
+                                                                const std::unordered_set<std::uint64_t>* cells,
+                                                                const FruitEstimate* fitted_whole) {
+  FruitEstimate whole;
+  if (fitted_whole != nullptr) {
+    whole = *fitted_whole;
+  } else {
+    const int warm = bestOverlap(cells ? *cells : occupiedCells(points));
+    whole = estimateCluster(points, normals, -1, warm >= 0 ? &tracks_[warm] : nullptr);
+    ++stats_.fitted;
+  }
+  Parts out;
+  const int min_part = params_.clustering.min_size;
+  // Touching fruits end up in one cluster, which no single superellipsoid fits: split it in
+  // two (2-means along its main axis, then one reassignment of points to the fit that explains
+  // them better) and keep the split if some part fits.
+  if (whole.accepted || !whole.converged || depth >= params_.max_split_depth ||
+      static_cast<int>(points.size()) < 2 * min_part) {
+    out.emplace_back(points, whole);
+    return out;
+  }
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) mean += p / static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov / points.size());
+  const Eigen::Vector3d axis = es.eigenvectors().col(2) * std::sqrt(std::max(0.0, es.eigenvalues()(2)));
+  Eigen::Vector3d c[2] = {mean - axis, mean + axis};
+  std::vector<int> label(points.size(), 0);
+  for (int it = 0; it < 10; ++it) {
+    Eigen::Vector3d sum[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+    int n[2] = {0, 0};
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      label[i] = (points[i] - c[1]).squaredNorm() < (points[i] - c[0]).squaredNorm();
+      sum[label[i]] += points[i];
+      ++n[label[i]];
+    }
+    if (n[0] == 0 || n[1] == 0) break;
+    c[0] = sum[0] / n[0];
+    c[1] = sum[1] / n[1];
+  }
+  // The parts keep the whole cluster's normals: computed once, from the fuller neighbourhoods.
+  std::vector<Eigen::Vector3d> part_normals[2];
+  auto partition = [&](PointList part[2]) {
+    for (int k = 0; k < 2; ++k) {
+      part[k].clear();
+      part_normals[k].clear();
+    }
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      part[label[i]].push_back(points[i]);
+      part_normals[label[i]].push_back(normals[i]);
+    }
+    return static_cast<int>(part[0].size()) >= min_part && static_cast<int>(part[1].size()) >= min_part;
+  };
+  PointList part[2];
+  if (!partition(part)) {
+    out.emplace_back(points, whole);
+    return out;
+  }
+  // Each half starts from the previous fruit it overlaps most, if there is one: touching fruits
+  // seen before were usually fitted apart before.
+  auto previousOf = [&](const PointList& half) -> const Track* {
+    const int k = bestOverlap(occupiedCells(half));
+    return k >= 0 ? &tracks_[k] : nullptr;
+  };
+  FruitEstimate first[2] = {estimateCluster(part[0], part_normals[0], -1, previousOf(part[0])),
+                            estimateCluster(part[1], part_normals[1], -1, previousOf(part[1]))};
+  stats_.fitted += 2;
+  const std::size_t half_points[2] = {part[0].size(), part[1].size()};
+  if (first[0].converged && first[1].converged) {
+    const Eigen::VectorXd d0 = radialDistances(points, first[0].shape);
+    const Eigen::VectorXd d1 = radialDistances(points, first[1].shape);
+    for (std::size_t i = 0; i < points.size(); ++i) label[i] = d1[i] < d0[i];
+    if (!partition(part)) {
+      out.emplace_back(points, whole);
+      return out;
+    }
+  }
+  Parts parts;
+  for (int k = 0; k < 2; ++k) {
+    // A half whose trial fit still explains its reassigned points keeps that fit.
+    if (params_.refit_tolerance > 0.0 && stillFits(first[k], half_points[k], part[k])) {
+      parts.emplace_back(part[k], keptEstimate(first[k], part[k]));
+      parts.back().second.refitted = true;
+      continue;
+    }
+    auto sub = estimateWithSplit(part[k], part_normals[k], depth + 1);
+    parts.insert(parts.end(), sub.begin(), sub.end());
+  }
+  // Keep the split if any part fits: of three merged fruits, the two that fit are found even
+  // when the third, half seen, fits nothing yet (the unfit parts stay unaccepted).
+  int accepted = 0;
+  for (const auto& pe : parts) accepted += pe.second.accepted;
+  if (accepted == 0) {
+    out.emplace_back(points, whole);
+    return out;
+  }
+  ++stats_.splits;
+  return parts;
+}
+
+}  // namespace fruit_shape_completion
