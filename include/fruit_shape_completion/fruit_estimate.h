@@ -13,6 +13,8 @@ struct FruitEstimate {
   Superellipsoid shape;  // the fit (meaningful when converged)
   double volume = 0.0;       // superellipsoid volume [m^3]
   double bbox_volume = 0.0;  // axis-aligned bounding box volume of the cluster's points [m^3]
+  // 90 % interval of the true volume (accepted fruits; volume_interval.h) [m^3]
+  double volume_lo = 0.0, volume_hi = 0.0;
   Eigen::Vector3d points_centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d center_prior = Eigen::Vector3d::Zero();  // w
   bool converged = false;

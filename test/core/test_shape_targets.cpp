@@ -1,8 +1,11 @@
 // Which predicted surface becomes the planner's targets (shape_targets.h): settled fruits hand
 // over nothing, a cap spreads each fruit's targets, targets sit `offset` outside the surface
-// along its outward normal and carry that normal as the side to view them from.
+// along its outward normal and carry that normal as the side to view them from. And the 90 %
+// volume interval, which comes from the same seen share (volume_interval.h).
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/missing_surface.h>
 #include <fruit_shape_completion/shape_targets.h>
+#include <fruit_shape_completion/volume_interval.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -105,4 +108,40 @@ TEST(ShapeTargets, BadParametersAreRefusedByName) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("target_offset"), std::string::npos);
   }
+}
+
+TEST(VolumeInterval, NarrowsAsMoreOfTheFruitIsSeenAndHoldsTheFittedVolume) {
+  const double v = 2e-4;
+  double last_width = 1e9;
+  for (double seen : {0.0, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0}) {
+    const VolumeInterval ci = volumeInterval90(v, seen);
+    EXPECT_LT(ci.lo, v) << seen;
+    EXPECT_GT(ci.hi, v) << seen;
+    EXPECT_LE(ci.hi - ci.lo, last_width + 1e-15) << "wider at " << seen;
+    last_width = ci.hi - ci.lo;
+  }
+  // The stress suite's figures: all seen, about +-10 %; half seen, about +-30 %.
+  EXPECT_NEAR(volumeInterval90(v, 1.0).lo, 0.89 * v, 1e-12);
+  EXPECT_NEAR(volumeInterval90(v, 1.0).hi, 1.10 * v, 1e-12);
+  const VolumeInterval half = volumeInterval90(v, 0.5);
+  EXPECT_NEAR(0.5 * (half.hi - half.lo) / v, 0.315, 0.01);
+  // Nonsense in, the widest interval out.
+  const VolumeInterval bad = volumeInterval90(v, std::nan(""));
+  EXPECT_NEAR(bad.lo, 0.60 * v, 1e-12);
+  EXPECT_NEAR(bad.hi, 1.30 * v, 1e-12);
+}
+
+TEST(VolumeInterval, AcceptedFitsOfThePipelineCarryIt) {
+  const Superellipsoid a = Superellipsoid::sphere(0.04, Eigen::Vector3d(0, 0, 0.5));
+  FruitShapePipeline pipeline;
+  PointList cloud;
+  for (const auto& p : a.sampleSurface(3000))
+    if (p.z() > 0.49) cloud.push_back(p);  // seen a little beyond its upper half
+  const auto& fruits = pipeline.update(cloud);
+  ASSERT_EQ(fruits.size(), 1u);
+  ASSERT_TRUE(fruits[0].accepted) << fruits[0].reason;
+  EXPECT_LT(fruits[0].volume_lo, fruits[0].volume);
+  EXPECT_GT(fruits[0].volume_hi, fruits[0].volume);
+  EXPECT_LE(fruits[0].volume_lo, a.volume());
+  EXPECT_GE(fruits[0].volume_hi, a.volume());
 }

@@ -10,6 +10,7 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <fruit_shape_completion/neighbour_grid.h>
+#include <fruit_shape_completion/shape_targets.h>
 
 #include "command_line.h"
 #include <nlohmann/json.hpp>
@@ -44,6 +45,11 @@ struct Case {
 struct Outcome {
   double coverage = 0;  // share of the surface directions some view saw
   double accuracy = 0, center_mm = 0, fit_ms = 0;
+  double fit_coverage = 0;  // the matched fit's own seen share (shape_targets.h seenCoverage)
+  double ratio = 0;         // true volume / fitted volume
+  double rms = 0;           // the matched fit's RMS radial residual [m]
+  bool inside = false;      // the true volume lies in the fit's 90 % interval
+  double half_width = 0;    // the interval's half-width relative to the fitted volume
   bool found = false;
 };
 
@@ -173,6 +179,11 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng) {
       o.found = true;
       o.accuracy = 1.0 - std::abs(f.volume - c.volume) / c.volume;
       o.center_mm = 1000.0 * d;
+      o.fit_coverage = seenCoverage(f, params.missing.samples);
+      o.ratio = c.volume / f.volume;
+      o.rms = f.rms;
+      o.inside = c.volume >= f.volume_lo && c.volume <= f.volume_hi;
+      o.half_width = 0.5 * (f.volume_hi - f.volume_lo) / f.volume;
     }
   }
   return o;
@@ -226,28 +237,35 @@ int main(int argc, char** argv) {
                              {"views", r.c.views.size()}, {"coverage", r.o.coverage}, {"noise_m", r.c.noise},
                              {"blur_m", r.c.blur}, {"outliers", r.c.outliers}, {"neighbour", r.c.neighbour},
                              {"found", r.o.found}, {"volume_accuracy", r.o.accuracy}, {"center_error_mm", r.o.center_mm},
-                             {"pipeline_ms", r.o.fit_ms}});
-  std::printf("%-26s %-14s %5s %8s %8s %8s %10s %10s %9s\n", "coverage", "kind", "n", "mean", "p5", "worst",
-              "centre mm", "centre p95", "ms (med)");
+                             {"pipeline_ms", r.o.fit_ms}, {"fit_coverage", r.o.fit_coverage},
+                             {"true_over_fitted_volume", r.o.ratio}, {"rms_m", r.o.rms},
+                             {"inside_ci90", r.o.inside}, {"ci90_relative_half_width", r.o.half_width}});
+  std::printf("%-26s %-14s %5s %8s %8s %8s %10s %10s %9s %8s %8s\n", "coverage", "kind", "n", "mean", "p5", "worst",
+              "centre mm", "centre p95", "ms (med)", "in ci90", "ci90 hw");
   for (std::size_t b = 0; b < bins.size(); ++b)
     for (const std::string kind : {"all", "superellipsoid", "pepper"}) {
-      std::vector<double> acc, err, ms;
+      std::vector<double> acc, err, ms, hw;
+      int inside = 0;
       for (const auto& r : rows)
         if (r.o.coverage >= bins[b].first && r.o.coverage < bins[b].second && (kind == "all" || r.c.kind == kind)) {
           acc.push_back(r.o.accuracy);
           if (r.o.found) err.push_back(r.o.center_mm);
           ms.push_back(r.o.fit_ms);
+          inside += r.o.inside ? 1 : 0;
+          if (r.o.found) hw.push_back(r.o.half_width);
         }
       if (acc.empty()) continue;
       double mean = 0, mean_err = 0;
       for (double a : acc) mean += a / acc.size();
       for (double e : err) mean_err += e / std::max<std::size_t>(1, err.size());
       const double p5 = quantile(acc, 0.05), worst = quantile(acc, 0.0), p95 = quantile(err, 0.95), med = quantile(ms, 0.5);
-      std::printf("%-26s %-14s %5zu %8.3f %8.3f %8.3f %10.2f %10.2f %9.2f\n", names[b], kind.c_str(), acc.size(), mean, p5,
-                  worst, mean_err, p95, med);
+      const double in_ci = static_cast<double>(inside) / acc.size(), med_hw = quantile(hw, 0.5);
+      std::printf("%-26s %-14s %5zu %8.3f %8.3f %8.3f %10.2f %10.2f %9.2f %8.3f %8.3f\n", names[b], kind.c_str(), acc.size(),
+                  mean, p5, worst, mean_err, p95, med, in_ci, med_hw);
       out["bins"].push_back({{"bin", names[b]}, {"kind", kind}, {"n", acc.size()}, {"mean_accuracy", mean},
                              {"p5_accuracy", p5}, {"worst_accuracy", worst}, {"mean_center_mm", mean_err},
-                             {"p95_center_mm", p95}, {"median_ms", med}});
+                             {"p95_center_mm", p95}, {"median_ms", med}, {"ci90_coverage", in_ci},
+                             {"ci90_median_relative_half_width", med_hw}});
     }
   if (!json_out.empty()) {
     std::ofstream f(json_out);

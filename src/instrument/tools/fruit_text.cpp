@@ -21,6 +21,7 @@ nlohmann::json fruitJson(const FruitEstimate& f) {
           {"e2", s.e2},
           {"rpy", vec3(s.rpy)},
           {"volume_m3", f.volume},
+          {"volume_ci90_m3", f.accepted ? nlohmann::json{f.volume_lo, f.volume_hi} : nlohmann::json()},
           {"bbox_volume_m3", f.bbox_volume},
           {"converged", f.converged},
           {"accepted", f.accepted},

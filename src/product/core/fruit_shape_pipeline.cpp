@@ -1,6 +1,8 @@
 #include <fruit_shape_completion/fruit_center.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/grid_cell.h>
+#include <fruit_shape_completion/shape_targets.h>
+#include <fruit_shape_completion/volume_interval.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -192,6 +194,9 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e) {
   if (!e->accepted || params_.missing.samples <= 0) return;
   const auto start = std::chrono::steady_clock::now();
   e->missing_surface = predictMissingSurface(e->shape, e->points, params_.missing);
+  const VolumeInterval ci = volumeInterval90(e->volume, seenCoverage(*e, params_.missing.samples));
+  e->volume_lo = ci.lo;
+  e->volume_hi = ci.hi;
   stats_.missing_seconds += secondsSince(start);
 }
 

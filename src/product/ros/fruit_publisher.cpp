@@ -233,7 +233,9 @@ void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const Poi
     label.scale.z = 0.02;
     label.color.r = label.color.g = label.color.b = label.color.a = 1.0f;
     std::ostringstream os;
-    os << "#" << f.id << " " << static_cast<int>(std::round(f.volume * 1e6)) << " cm3";
+    os << "#" << f.id << " " << static_cast<int>(std::round(f.volume * 1e6));
+    if (f.volume_hi > f.volume_lo) os << " +- " << static_cast<int>(std::round(0.5 * (f.volume_hi - f.volume_lo) * 1e6));
+    os << " cm3";
     label.text = os.str();
     markers.markers.push_back(label);
   }
