@@ -10,11 +10,13 @@
 #include <condition_variable>
 #include <functional>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <chrono>
 #include <mutex>
 #include <thread>
+#include <unistd.h>
 
 using namespace fruit_shape_completion;
 using namespace fruit_shape_completion::host;
@@ -385,6 +387,80 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   EXPECT_GT(queries.load(), 0);
   ASSERT_EQ(est.fruits().size(), 1u);
   EXPECT_NEAR(est.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
+}
+
+// Live settings (dynamic_reconfigure's thread), fruit exports (a service thread), target and
+// sighting queries (the planning thread) while views and fits run: scripts/sanitize.sh tsan
+// runs it under ThreadSanitizer.
+TEST(SuperellipsoidEstimator, LiveSettingsAndExportsWhileViewsAndFitsRun) {
+  SuperellipsoidEstimator est;
+  std::atomic<bool> done{false};
+  std::atomic<int> changes{0}, exports{0};
+  std::thread reconfigure([&] {
+    EstimatorLiveParams live = est.liveParams();
+    for (int i = 0; !done; ++i) {
+      live.shape_targets = i % 2 == 0;
+      live.input.red_test.min_saturation = 30 + i % 5;
+      live.refit_tolerance = 0.1 + 0.01 * (i % 3);
+      live.targets.offset = 0.02 + 0.005 * (i % 3);
+      est.setLiveParams(live);
+      ++changes;
+    }
+  });
+  const std::string path = "/tmp/fsc_live_export_" + std::to_string(::getpid()) + ".json";
+  std::thread service([&] {
+    std::string error;
+    while (!done) {
+      EXPECT_TRUE(est.exportFruits(path, &error)) << error;
+      for (const auto& kv : est.sightings()) EXPECT_GE(kv.second.views, 0);
+      est.viewTargets();
+      ++exports;
+    }
+  });
+  std::mt19937 rng(2);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  const PointList none;
+  for (int v = 0; v < 6; ++v) {
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(std::cos(v), -1, std::sin(v));
+    scan.visible_fraction = 0.4;
+    scan.voxel = 0.002;
+    scan.seed = v;
+    const PointList fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+    est.insertView(ViewData{fruit, none, pose, double(v)});
+    est.update();
+  }
+  done = true;
+  reconfigure.join();
+  service.join();
+  std::remove(path.c_str());
+  EXPECT_GT(changes.load(), 0);
+  EXPECT_GT(exports.load(), 0);
+  ASSERT_EQ(est.fruits().size(), 1u);
+  EXPECT_NEAR(est.fruits()[0].volume, truth.volume(), 0.15 * truth.volume());
+  // The last setting holds: off empties the targets at once, on gives them back at the next fit.
+  EstimatorLiveParams live = est.liveParams();
+  live.shape_targets = false;
+  est.setLiveParams(live);
+  EXPECT_TRUE(est.viewTargets().points.empty());
+  live.shape_targets = true;
+  est.setLiveParams(live);
+  ScanParams again;  // a seventh partial view: the fruit still has an unseen side
+  again.view_dir = Eigen::Vector3d(0, -1, 0);
+  again.visible_fraction = 0.4;
+  again.voxel = 0.002;
+  again.seed = 7;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = truth.t + 0.4 * again.view_dir;
+  pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+  const PointList seventh = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), again);
+  est.insertView(ViewData{seventh, none, pose, 10.0});
+  est.update();
+  EXPECT_FALSE(est.viewTargets().points.empty());
+  EXPECT_EQ(est.sightings().at(est.fruits()[0].id).views, 7);
 }
 
 TEST(ViewpointPlanner, ShortEpisodeFindsAndMeasuresTheFruits) {
