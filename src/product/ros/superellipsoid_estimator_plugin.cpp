@@ -22,6 +22,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -162,6 +163,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"rays outside the map", std::to_string(s.rays_outside)},
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
+            {"fruit volumes: median 90 % interval half-width [%]", medianIntervalHalfWidth()},
             {"camera frames received", std::to_string(frames_received_)},
             {"views fed by their camera frame", std::to_string(s.camera_frames)},
             {"views fed by their own (1 cm) cloud: no frame paired", std::to_string(fallback_views_)},
@@ -455,6 +457,17 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     if (res.success) own_updates_->request();
     res.message = res.success ? "loaded " + req.file_path : error;
     return true;
+  }
+  // The median relative half-width of the accepted fruits' 90 % volume intervals ("-": none).
+  std::string medianIntervalHalfWidth() const {
+    std::vector<double> hw;
+    for (const auto& f : estimator_->fruits())
+      if (f.volume > 0.0) hw.push_back(50.0 * (f.volume_hi - f.volume_lo) / f.volume);
+    if (hw.empty()) return "-";
+    std::nth_element(hw.begin(), hw.begin() + hw.size() / 2, hw.end());
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.1f", hw[hw.size() / 2]);
+    return text;
   }
   std::string totals() const {
     const host::EstimatorStatus s = estimator_->status();
