@@ -355,6 +355,23 @@ TEST(ViewpointPlanner, AViewThatRunsOutOfMemoryIsDroppedAndTheEpisodeGoesOn) {
   EXPECT_FALSE(host.fruits(0).empty());
 }
 
+// 40 % of a fruit seen from `dir` (2 mm voxels), with the camera 40 cm out looking at it.
+struct PartialView {
+  PointList fruit, none;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  PartialView(const Superellipsoid& truth, const Eigen::Vector3d& dir, unsigned seed) {
+    ScanParams scan;
+    scan.view_dir = dir;
+    scan.visible_fraction = 0.4;
+    scan.voxel = 0.002;
+    scan.seed = seed;
+    fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+    pose.translation() = truth.t + 0.4 * dir.normalized();
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+  }
+  ViewData data(double time) const { return ViewData{fruit, none, pose, time}; }
+};
+
 TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   SuperellipsoidEstimator est;
   std::atomic<bool> done{false};
@@ -368,18 +385,9 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   });
   std::mt19937 rng(2);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  const PointList none;
   for (int v = 0; v < 6; ++v) {
-    ScanParams scan;
-    scan.view_dir = Eigen::Vector3d(std::cos(v), -1, std::sin(v));
-    scan.visible_fraction = 0.4;
-    scan.voxel = 0.002;
-    scan.seed = v;
-    const PointList fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
-    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
-    est.insertView(ViewData{fruit, none, pose, double(v)});
+    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
+    est.insertView(view.data(v));
     est.update();
   }
   done = true;
@@ -419,18 +427,9 @@ TEST(SuperellipsoidEstimator, LiveSettingsAndExportsWhileViewsAndFitsRun) {
   });
   std::mt19937 rng(2);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  const PointList none;
   for (int v = 0; v < 6; ++v) {
-    ScanParams scan;
-    scan.view_dir = Eigen::Vector3d(std::cos(v), -1, std::sin(v));
-    scan.visible_fraction = 0.4;
-    scan.voxel = 0.002;
-    scan.seed = v;
-    const PointList fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.translation() = truth.t + 0.4 * scan.view_dir.normalized();
-    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
-    est.insertView(ViewData{fruit, none, pose, double(v)});
+    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
+    est.insertView(view.data(v));
     est.update();
   }
   done = true;
@@ -448,16 +447,8 @@ TEST(SuperellipsoidEstimator, LiveSettingsAndExportsWhileViewsAndFitsRun) {
   EXPECT_TRUE(est.viewTargets().points.empty());
   live.shape_targets = true;
   est.setLiveParams(live);
-  ScanParams again;  // a seventh partial view: the fruit still has an unseen side
-  again.view_dir = Eigen::Vector3d(0, -1, 0);
-  again.visible_fraction = 0.4;
-  again.voxel = 0.002;
-  again.seed = 7;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.translation() = truth.t + 0.4 * again.view_dir;
-  pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
-  const PointList seventh = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), again);
-  est.insertView(ViewData{seventh, none, pose, 10.0});
+  const PartialView seventh(truth, Eigen::Vector3d(0, -1, 0), 7);  // the fruit still has an unseen side
+  est.insertView(seventh.data(10.0));
   est.update();
   EXPECT_FALSE(est.viewTargets().points.empty());
   EXPECT_EQ(est.sightings().at(est.fruits()[0].id).views, 7);

@@ -98,7 +98,9 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   double lastSurfaceSeconds() const;  // surface extraction of the last update
 
  private:
-  SuperellipsoidEstimatorParams params_;  // the live fields change under fit_mutex_
+  // The start values; shape_targets and targets change under fit_mutex_ (the live input stage
+  // is input_stage_, the live pipeline settings pipeline_'s).
+  SuperellipsoidEstimatorParams params_;
   const PipelineParams start_pipeline_;
   PipelineParams pipelineWith(const EstimatorLiveParams& live) const;
   // Swapped whole by setLiveParams; a view runs the stage it took, outside the locks.

@@ -55,7 +55,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
 
   std::mt19937 rng(p.seed);
   RoiOcTree tree(p.octree_resolution);
-  Eigen::Vector3d pos = scene.camera_start_position, look = scene.camera_start_look_at;
+  Eigen::Vector3d pos = scene.camera_start_position;
+  const Eigen::Vector3d look = scene.camera_start_look_at;
   double t = 0.0, last_update = -1e300;
   // The estimators' results as the planner sees them, and a fit still running (in simulated time).
   struct FitResults {

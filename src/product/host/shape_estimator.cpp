@@ -217,16 +217,7 @@ void ShapeEstimatorHost::update() {
   for (std::size_t i = 0, n = size(); i < n; ++i) guarded(i, [&](ShapeEstimator& e) { e.update(); });
 }
 
-PointList ShapeEstimatorHost::extraTargets() const {
-  PointList all;
-  for (std::size_t i = 0, n = size(); i < n; ++i) {
-    PointList t;
-    if (guarded(i, [&](ShapeEstimator& e) { t = e.extraTargets(); }))
-      for (const auto& p : t)
-        if (p.allFinite()) all.push_back(p);
-  }
-  return all;
-}
+PointList ShapeEstimatorHost::extraTargets() const { return viewTargets().points; }
 
 ShapeTargets ShapeEstimatorHost::viewTargets() const {
   ShapeTargets all;

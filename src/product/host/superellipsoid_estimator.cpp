@@ -135,8 +135,6 @@ void SuperellipsoidEstimator::update() {
     if (live_pending_) {
       const PipelineParams pipeline = pipelineWith(live_);
       pipeline_.setParams(pipeline);
-      params_.pipeline = pipeline;
-      params_.input = live_.input;
       params_.shape_targets = live_.shape_targets;
       params_.targets = live_.targets;
       live_pending_ = false;
@@ -159,7 +157,7 @@ void SuperellipsoidEstimator::update() {
   if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
   std::vector<FruitEstimate> estimates = pipeline_.fruits();
   ShapeTargets targets;
-  if (params_.shape_targets) targets = selectShapeTargets(estimates, params_.pipeline.missing.samples, params_.targets);
+  if (params_.shape_targets) targets = selectShapeTargets(estimates, pipeline_.params().missing.samples, params_.targets);
   {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
     sightings_.update(estimates);
@@ -180,11 +178,7 @@ std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const {
   return out;
 }
 
-PointList SuperellipsoidEstimator::extraTargets() const {
-  if (!targets_on_) return {};
-  std::lock_guard<std::mutex> lock(results_mutex_);
-  return targets_.points;
-}
+PointList SuperellipsoidEstimator::extraTargets() const { return viewTargets().points; }
 
 ShapeTargets SuperellipsoidEstimator::viewTargets() const {
   if (!targets_on_) return {};
