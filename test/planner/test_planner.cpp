@@ -372,6 +372,18 @@ struct PartialView {
   ViewData data(double time) const { return ViewData{fruit, none, pose, time}; }
 };
 
+// Six partial views of one random fruit into `est`, each followed by a fit; returns the fruit.
+Superellipsoid mapSixPartialViews(SuperellipsoidEstimator& est) {
+  std::mt19937 rng(2);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  for (int v = 0; v < 6; ++v) {
+    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
+    est.insertView(view.data(v));
+    est.update();
+  }
+  return truth;
+}
+
 TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   SuperellipsoidEstimator est;
   std::atomic<bool> done{false};
@@ -383,13 +395,7 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
       ++queries;
     }
   });
-  std::mt19937 rng(2);
-  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  for (int v = 0; v < 6; ++v) {
-    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
-    est.insertView(view.data(v));
-    est.update();
-  }
+  const Superellipsoid truth = mapSixPartialViews(est);
   done = true;
   reader.join();
   EXPECT_GT(queries.load(), 0);
@@ -425,13 +431,7 @@ TEST(SuperellipsoidEstimator, LiveSettingsAndExportsWhileViewsAndFitsRun) {
       ++exports;
     }
   });
-  std::mt19937 rng(2);
-  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  for (int v = 0; v < 6; ++v) {
-    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
-    est.insertView(view.data(v));
-    est.update();
-  }
+  const Superellipsoid truth = mapSixPartialViews(est);
   done = true;
   reconfigure.join();
   service.join();
