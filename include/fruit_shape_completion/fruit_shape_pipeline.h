@@ -26,6 +26,12 @@ struct PipelineParams {
   double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
   // A cluster that no superellipsoid fits is split in two up to this depth (touching fruits).
   int max_split_depth = 2;
+  // A cluster whose split only cuts one fruit into overlapping parts is that fruit, fitted
+  // whole and accepted up to this RMS radial residual (fit.max_rms decides when to try a split).
+  double one_fruit_max_rms = 0.009;
+  // An accepted fit above this RMS is split too if that explains its points far better (two
+  // small touching fruits fit one superellipsoid within fit.max_rms).
+  double split_rms = 0.004;
   // A changed cluster that one accepted fruit covered before keeps that fit, unrefitted, while
   // the fit still explains it: the RMS radial residual of its points under the old fit at most
   // (1 + refit_tolerance) times the old one (1 mm at least), and at most refit_tolerance more

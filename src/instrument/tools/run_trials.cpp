@@ -5,6 +5,7 @@
 //              [--input camera|roi|fruit-cloud] [--no-depth-edges] [--input-outliers K,STD,R] [--no-veil]
 //              [--velocity-scaling S] [--plan-overhead S] [--out DIR] [--json] [--jobs J]
 #include <fruit_shape_completion/host/superellipsoid_estimator.h>
+#include <fruit_shape_completion/instrument/cloud_io.h>
 #include <fruit_shape_completion/instrument/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/instrument/sim/fruit_truth.h>
 #include <fruit_shape_completion/instrument/sim/procedural_scene.h>
@@ -144,6 +145,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1e-3, 1.0));
   app.add_option("--plan-overhead", plan_overhead, "seconds per plan besides motion and compute (ideal: 2, paper: 1.5)")
       ->check(CLI::Range(0.0, 1e3));
+  bool save_surfaces = false;
+  app.add_flag("--save-surfaces", save_surfaces,
+               "also write each trial's final fruit surface cloud (surface_K.ply; fit_cloud reads it)");
   app.add_flag_callback("--no-shape-targets", [&] { estimator.shape_targets = false; },
                         "the estimator's shape_targets parameter off: it fits but hands the planner no targets");
   app.add_option("--target-settled-coverage", estimator.targets.settled_coverage,
@@ -228,9 +232,16 @@ int main(int argc, char** argv) {
       p.seed = base.seed + static_cast<unsigned>(k);
       p.render_threads = jobs == 1 ? 2 : 1;
       ShapeEstimatorHost host;
-      host.add(std::make_unique<SuperellipsoidEstimator>(estimator));
+      auto owned = std::make_unique<SuperellipsoidEstimator>(estimator);
+      const SuperellipsoidEstimator* superellipsoids = owned.get();
+      host.add(std::move(owned));
       const auto t0 = std::chrono::steady_clock::now();
       results[k] = runEpisode(scene, renderer, truth, host, p);
+      if (save_surfaces) {
+        std::string error;
+        if (!writePly(out + "/surface_" + std::to_string(k) + ".ply", superellipsoids->surface(), {}, &error))
+          std::cerr << "run_trials: " << error << "\n";
+      }
       wall[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       std::lock_guard<std::mutex> lock(log);
       std::cerr << "run_trials: trial " << k << ": " << results[k].views.size() << " views, " << wall[k]

@@ -89,6 +89,10 @@ void PipelineParams::validate() const {
     throw std::invalid_argument("refit tolerance must be a finite value >= 0");
   if (!(missing.threshold > 0.0) || !std::isfinite(missing.threshold))
     throw std::invalid_argument("missing-surface threshold must be a finite value > 0");
+  if (!(one_fruit_max_rms >= fit.max_rms) || !std::isfinite(one_fruit_max_rms))
+    throw std::invalid_argument("one_fruit_max_rms must be a finite value >= the fit's max_rms");
+  if (!(split_rms > 0.0) || !(split_rms <= fit.max_rms))
+    throw std::invalid_argument("split_rms must be in (0, the fit's max_rms]");
   fit.validate();
 }
 

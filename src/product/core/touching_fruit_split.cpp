@@ -8,6 +8,25 @@
 
 namespace fruit_shape_completion {
 
+namespace {
+
+// Two fits are one fruit when either centre lies inside the other: touching fruits do not
+// interpenetrate, so a split whose parts do has cut a single fruit into pieces.
+bool oneFruit(const Superellipsoid& a, const Superellipsoid& b) { return a.isInside(b.t) || b.isInside(a.t); }
+
+template <typename Fits, typename ShapeOf>
+bool anyTwoOneFruit(const Fits& fits, ShapeOf shapeOf) {
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    for (std::size_t j = i + 1; j < fits.size(); ++j)
+      if (oneFruit(shapeOf(fits[i]), shapeOf(fits[j]))) return true;
+  return false;
+}
+
+// A split of an accepted fit must lower the RMS radial residual at least this much (relative).
+constexpr double kSplitGain = 0.7;
+
+}  // namespace
+
 std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused,
     std::vector<Eigen::Vector3d>* normals_out, std::optional<FruitEstimate>* whole_out) {
@@ -42,7 +61,7 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     normals = normalsOf(points);
     *whole_out = estimateCluster(points, normals, -1, &tracks_[static_cast<std::size_t>(bestOverlap(cells))]);
     ++stats_.fitted;
-    if ((*whole_out)->accepted) {
+    if ((*whole_out)->accepted && (*whole_out)->rms <= params_.split_rms) {
       Track whole;
       whole.estimate = **whole_out;
       whole.fitted_points = points.size();
@@ -86,6 +105,7 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     }
     out.push_back(std::move(t));
   }
+  if (anyTwoOneFruit(out, [](const Track& t) -> const Superellipsoid& { return t.estimate.shape; })) return {};
   stats_.kept += kept;
   ++stats_.splits;
   return out;
@@ -108,7 +128,10 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
   // Touching fruits end up in one cluster, which no single superellipsoid fits: split it in
   // two (2-means along its main axis, then one reassignment of points to the fit that explains
   // them better) and keep the split if some part fits.
-  if (whole.accepted || !whole.converged || depth >= params_.max_split_depth ||
+  // A fit that is accepted but explains its points only roughly may be two small touching
+  // fruits fitted as one: its split is tried too, and kept only if it explains them far better.
+  const bool suspect = whole.accepted && whole.rms > params_.split_rms;
+  if ((whole.accepted && !suspect) || !whole.converged || depth >= params_.max_split_depth ||
       static_cast<int>(points.size()) < 2 * min_part) {
     out.emplace_back(points, whole);
     return out;
@@ -184,10 +207,33 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
   // Keep the split if any part fits: of three merged fruits, the two that fit are found even
   // when the third, half seen, fits nothing yet (the unfit parts stay unaccepted).
   int accepted = 0;
-  for (const auto& pe : parts) accepted += pe.second.accepted;
+  std::vector<const Superellipsoid*> fits;
+  for (const auto& pe : parts) {
+    accepted += pe.second.accepted;
+    if (pe.second.accepted) fits.push_back(&pe.second.shape);
+  }
+  if (anyTwoOneFruit(fits, [](const Superellipsoid* s) -> const Superellipsoid& { return *s; })) {
+    // One fruit that fits a superellipsoid only roughly (blurred rims, lobes): whole, and
+    // accepted up to one_fruit_max_rms.
+    if (whole.rms <= params_.one_fruit_max_rms) {
+      whole.accepted = true;
+      whole.reason.clear();
+    }
+    out.emplace_back(points, whole);
+    return out;
+  }
   if (accepted == 0) {
     out.emplace_back(points, whole);
     return out;
+  }
+  if (suspect) {
+    double squares = 0.0;
+    for (const auto& pe : parts) squares += pe.first.size() * pe.second.rms * pe.second.rms;
+    const double split_rms = std::sqrt(squares / static_cast<double>(points.size()));
+    if (accepted < static_cast<int>(parts.size()) || split_rms > kSplitGain * whole.rms) {
+      out.emplace_back(points, whole);
+      return out;
+    }
   }
   ++stats_.splits;
   return parts;

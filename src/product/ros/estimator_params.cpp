@@ -117,6 +117,8 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("fit_function_tolerance", p.pipeline.fit.function_tolerance);
   read("fit_stall_tolerance", p.pipeline.fit.stall_tolerance);
   read("max_rms", p.pipeline.fit.max_rms);
+  read("split_rms", p.pipeline.split_rms);
+  read("one_fruit_max_rms", p.pipeline.one_fruit_max_rms);
   read("missing_surface_samples", p.pipeline.missing.samples);
   read("missing_surface_threshold", p.pipeline.missing.threshold);
   read("publish_targets", p.shape_targets);  // the older name of shape_targets
