@@ -148,7 +148,7 @@ PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, doub
   return out;
 }
 
-Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng) {
+Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, const std::string& dump) {
   Outcome o;
   PointList cloud = scan(c.fruit, c.views, c.noise, c.blur, rng, &o.coverage);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -165,6 +165,10 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng) {
   const int n_out = static_cast<int>(c.outliers * own);
   for (int i = 0; i < n_out; ++i)  // stray surface points within 3 cm of the fruit's outline
     cloud.push_back(c.fruit.center + (0.5 * c.diameter + 0.03) * Eigen::Vector3d{u(rng), u(rng), u(rng)});
+  if (!dump.empty()) {
+    std::ofstream f(dump);
+    for (const auto& p : cloud) f << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  }
   FruitShapePipeline pipeline(params);
   const auto start = std::chrono::steady_clock::now();
   const std::vector<FruitEstimate> fruits = pipeline.update(cloud);
@@ -211,6 +215,10 @@ int main(int argc, char** argv) {
   app.add_option("--function-tolerance", params.fit.function_tolerance, "the fit's fit_function_tolerance")
       ->capture_default_str();
   app.add_option("--refit-tolerance", params.refit_tolerance, "the pipeline's refit_tolerance")->capture_default_str();
+  int dump_index = -1;
+  std::string dump_file;
+  app.add_option("--dump-index", dump_index, "write this case's cloud (x y z per line) to --dump-file");
+  app.add_option("--dump-file", dump_file, "where --dump-index's cloud goes");
   if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
   try {
     params.validate();
@@ -226,7 +234,7 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   for (int i = 0; i < n; ++i) {
     Case c = randomCase(i, rng);
-    Outcome o = run(c, params, rng);
+    Outcome o = run(c, params, rng, i == dump_index ? dump_file : std::string());
     rows.push_back({std::move(c), o});
   }
   const std::vector<std::pair<double, double>> bins = {{0.0, 0.35}, {0.35, 0.6}, {0.6, 0.85}, {0.85, 1.01}};

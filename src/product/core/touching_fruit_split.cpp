@@ -10,9 +10,17 @@ namespace fruit_shape_completion {
 
 namespace {
 
-// Two fits are one fruit when either centre lies inside the other: touching fruits do not
-// interpenetrate, so a split whose parts do has cut a single fruit into pieces.
-bool oneFruit(const Superellipsoid& a, const Superellipsoid& b) { return a.isInside(b.t) || b.isInside(a.t); }
+// Two fits are one fruit when they interpenetrate by more than kOverlapShare of the smaller
+// one's extent along the line between their centres: touching fruits do not, so a split whose
+// parts do has cut a single fruit into pieces (fits of partly seen fruits bulge a little, which
+// the margin leaves to touching pairs).
+constexpr double kOverlapShare = 0.3;
+bool oneFruit(const Superellipsoid& a, const Superellipsoid& b) {
+  const Eigen::Vector3d d = b.t - a.t;
+  const double ra = a.surfacePointLocal(a.rotation().transpose() * d).norm();
+  const double rb = b.surfacePointLocal(b.rotation().transpose() * -d).norm();
+  return ra + rb - d.norm() > kOverlapShare * std::min(ra, rb);
+}
 
 template <typename Fits, typename ShapeOf>
 bool anyTwoOneFruit(const Fits& fits, ShapeOf shapeOf) {
@@ -24,6 +32,8 @@ bool anyTwoOneFruit(const Fits& fits, ShapeOf shapeOf) {
 
 // A split of an accepted fit must lower the RMS radial residual at least this much (relative).
 constexpr double kSplitGain = 0.7;
+// Overlapping parts are one fruit unless they lower the RMS below this share of the whole's.
+constexpr double kOverlapGain = 0.5;
 
 }  // namespace
 
@@ -204,36 +214,31 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
     auto sub = estimateWithSplit(part[k], part_normals[k], depth + 1);
     parts.insert(parts.end(), sub.begin(), sub.end());
   }
-  // Keep the split if any part fits: of three merged fruits, the two that fit are found even
-  // when the third, half seen, fits nothing yet (the unfit parts stay unaccepted).
+  double squares = 0.0;
   int accepted = 0;
   std::vector<const Superellipsoid*> fits;
   for (const auto& pe : parts) {
+    squares += pe.first.size() * pe.second.rms * pe.second.rms;
     accepted += pe.second.accepted;
     if (pe.second.accepted) fits.push_back(&pe.second.shape);
   }
-  if (anyTwoOneFruit(fits, [](const Superellipsoid* s) -> const Superellipsoid& { return *s; })) {
-    // One fruit that fits a superellipsoid only roughly (blurred rims, lobes): whole, and
-    // accepted up to one_fruit_max_rms.
-    if (whole.rms <= params_.one_fruit_max_rms) {
-      whole.accepted = true;
-      whole.reason.clear();
-    }
+  const double split_rms = std::sqrt(squares / static_cast<double>(points.size()));
+  // Parts that overlap have cut one fruit that fits a superellipsoid only roughly (blurred rims,
+  // lobes): it stays whole and is accepted. Unless the parts explain the points several times
+  // better: a half-seen neighbour's fit may bulge into its touching fruit.
+  if (whole.rms <= params_.one_fruit_max_rms && split_rms > kOverlapGain * whole.rms &&
+      anyTwoOneFruit(fits, [](const Superellipsoid* s) -> const Superellipsoid& { return *s; })) {
+    whole.accepted = true;
+    whole.reason.clear();
     out.emplace_back(points, whole);
     return out;
   }
-  if (accepted == 0) {
+  // Keep the split if any part fits: of three merged fruits, the two that fit are found even
+  // when the third, half seen, fits nothing yet (the unfit parts stay unaccepted). An accepted
+  // whole gives way only to parts that all fit, far better.
+  if (accepted == 0 || (suspect && (accepted < static_cast<int>(parts.size()) || split_rms > kSplitGain * whole.rms))) {
     out.emplace_back(points, whole);
     return out;
-  }
-  if (suspect) {
-    double squares = 0.0;
-    for (const auto& pe : parts) squares += pe.first.size() * pe.second.rms * pe.second.rms;
-    const double split_rms = std::sqrt(squares / static_cast<double>(points.size()));
-    if (accepted < static_cast<int>(parts.size()) || split_rms > kSplitGain * whole.rms) {
-      out.emplace_back(points, whole);
-      return out;
-    }
   }
   ++stats_.splits;
   return parts;
