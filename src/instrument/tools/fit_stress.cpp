@@ -48,6 +48,7 @@ struct Outcome {
   double fit_coverage = 0;  // the matched fit's own seen share (shape_targets.h seenCoverage)
   double ratio = 0;         // true volume / fitted volume
   double rms = 0;           // the matched fit's RMS radial residual [m]
+  double min_axis = 0;      // the matched fit's shortest semi-axis [m]
   bool inside = false;      // the true volume lies in the fit's 90 % interval
   double half_width = 0;    // the interval's half-width relative to the fitted volume
   bool found = false;
@@ -186,6 +187,7 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
       o.fit_coverage = seenCoverage(f, params.missing.samples);
       o.ratio = c.volume / f.volume;
       o.rms = f.rms;
+      o.min_axis = std::min({f.shape.a, f.shape.b, f.shape.c});
       o.inside = c.volume >= f.volume_lo && c.volume <= f.volume_hi;
       o.half_width = 0.5 * (f.volume_hi - f.volume_lo) / f.volume;
     }
@@ -246,7 +248,7 @@ int main(int argc, char** argv) {
                              {"blur_m", r.c.blur}, {"outliers", r.c.outliers}, {"neighbour", r.c.neighbour},
                              {"found", r.o.found}, {"volume_accuracy", r.o.accuracy}, {"center_error_mm", r.o.center_mm},
                              {"pipeline_ms", r.o.fit_ms}, {"fit_coverage", r.o.fit_coverage},
-                             {"true_over_fitted_volume", r.o.ratio}, {"rms_m", r.o.rms},
+                             {"true_over_fitted_volume", r.o.ratio}, {"rms_m", r.o.rms}, {"fit_min_axis_m", r.o.min_axis},
                              {"inside_ci90", r.o.inside}, {"ci90_relative_half_width", r.o.half_width}});
   std::printf("%-26s %-14s %5s %8s %8s %8s %10s %10s %9s %8s %8s\n", "coverage", "kind", "n", "mean", "p5", "worst",
               "centre mm", "centre p95", "ms (med)", "in ci90", "ci90 hw");

@@ -1,5 +1,8 @@
 #include "fruit_text.h"
 
+#include <fruit_shape_completion/missing_surface.h>
+#include <fruit_shape_completion/shape_targets.h>
+
 #include <cmath>
 #include <cstdio>
 
@@ -22,6 +25,8 @@ nlohmann::json fruitJson(const FruitEstimate& f) {
           {"rpy", vec3(s.rpy)},
           {"volume_m3", f.volume},
           {"volume_ci90_m3", f.accepted ? nlohmann::json{f.volume_lo, f.volume_hi} : nlohmann::json()},
+          // the share of the fitted surface its points cover, which the interval is made from
+          {"seen_share", f.accepted ? nlohmann::json(seenCoverage(f, MissingSurfaceParams().samples)) : nlohmann::json()},
           {"bbox_volume_m3", f.bbox_volume},
           {"converged", f.converged},
           {"accepted", f.accepted},

@@ -198,7 +198,9 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e) {
   if (!e->accepted || params_.missing.samples <= 0) return;
   const auto start = std::chrono::steady_clock::now();
   e->missing_surface = predictMissingSurface(e->shape, e->points, params_.missing);
-  const VolumeInterval ci = volumeInterval90(e->volume, seenCoverage(*e, params_.missing.samples));
+  const Superellipsoid& se = e->shape;
+  const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
+  const VolumeInterval ci = volumeInterval90(e->volume, seenCoverage(*e, params_.missing.samples), e->rms, at_bound);
   e->volume_lo = ci.lo;
   e->volume_hi = ci.hi;
   stats_.missing_seconds += secondsSince(start);

@@ -14,7 +14,7 @@ namespace {
 // one's extent along the line between their centres: touching fruits do not, so a split whose
 // parts do has cut a single fruit into pieces (fits of partly seen fruits bulge a little, which
 // the margin leaves to touching pairs).
-constexpr double kOverlapShare = 0.3;
+constexpr double kOverlapShare = 0.5;
 bool oneFruit(const Superellipsoid& a, const Superellipsoid& b) {
   const Eigen::Vector3d d = b.t - a.t;
   const double ra = a.surfacePointLocal(a.rotation().transpose() * d).norm();
