@@ -71,6 +71,21 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   std::vector<char> red_fruit_material;
   for (const auto& m : scene.materials) red_fruit_material.push_back(m.fruit && sim::colorClass(m.rgb) == "red");
 
+  // The trolley's window of the workspace: the planner samples there and the arm's base stays
+  // there; the whole workspace without a trolley.
+  sim::Workspace workspace = scene.workspace;
+  double trolley_x = pos.x();
+  int segment = 0;
+  auto placeWindow = [&]() {
+    if (!(p.trolley_move_length > 0.0)) return;
+    const double half = 0.5 * p.trolley_move_length + p.trolley_window_margin;
+    workspace.box_min.x() = std::max(scene.workspace.box_min.x(), trolley_x - half);
+    workspace.box_max.x() = std::min(scene.workspace.box_max.x(), trolley_x + half);
+    if (arm)
+      arm->setBaseRange(Eigen::Vector2d(std::max(scene.robot.xy_min.x(), trolley_x - half), scene.robot.xy_min.y()),
+                        Eigen::Vector2d(std::min(scene.robot.xy_max.x(), trolley_x + half), scene.robot.xy_max.y()));
+  };
+  placeWindow();
   if (arm && !placeArmAtStart(scene, *arm, p.arm_motion, look, rng, &pos, &state)) {
     result.message = "the arm (" + scene.robot.describe() + ") reaches no view near the camera start; no views taken";
     return result;
@@ -97,6 +112,19 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   int rounds_without_choice = 0;  // rounds whose chosen list was empty
   int view = 0;
   for (;;) {
+    // The trolley's next segment: it carries the arm, camera and window along the row.
+    if (p.trolley_move_length > 0.0 && t >= (segment + 1) * p.trolley_time_per_segment) {
+      ++segment;
+      if (trolley_x + p.trolley_move_length <= scene.workspace.box_max.x()) {
+        trolley_x += p.trolley_move_length;
+        t += p.trolley_move_length / p.trolley_speed;
+        pos.x() += p.trolley_move_length;
+        if (arm) state.base.x() += p.trolley_move_length;
+        placeWindow();
+        ++result.trolley_moves;
+        capture = true;
+      }
+    }
     t += capture ? p.view_cost : p.retry_cost;
     if (t > p.duration) break;
     // A view or round that fails (out of memory, a throwing callback) is dropped and counted;
@@ -162,7 +190,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
       // ViewpointPlanner::plannerLoopOnce: sample both lists, take one, try it best first.
       ++result.planning_rounds;
       const ShapeTargets extra = p.shape_targets ? visibleNow().targets : ShapeTargets();
-      const SampledCandidates sampled = sampleUpstream(tree, scene.workspace, extra, pos, p.sampling, rng);
+      const SampledCandidates sampled = sampleUpstream(tree, workspace, extra, pos, p.sampling, rng);
       const std::vector<SampledView>& chosen = sampled.chosen();
       rec.contour_targets = static_cast<int>(sampled.roi_pool - extra.points.size());
       rec.shape_targets = static_cast<int>(extra.points.size());

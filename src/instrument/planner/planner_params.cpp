@@ -46,6 +46,11 @@ std::string PlannerParams::problem() const {
   if (!finite_pos(octree_max_range)) return "octree_max_range must be > 0";
   if (!(std::isfinite(clearance) && clearance >= 0.0)) return "clearance must be >= 0";
   if (render_threads < 1) return "render_threads must be >= 1";
+  if (!(std::isfinite(trolley_move_length) && trolley_move_length >= 0.0)) return "trolley_move_length must be >= 0";
+  if (trolley_move_length > 0.0 &&
+      (!finite_pos(trolley_time_per_segment) || !finite_pos(trolley_speed) ||
+       !(std::isfinite(trolley_window_margin) && trolley_window_margin >= 0.0)))
+    return "trolley_time_per_segment and trolley_speed must be > 0, trolley_window_margin >= 0";
   if (!(std::isfinite(estimator_period) && estimator_period >= 0.0)) return "estimator_period must be >= 0";
   if (arm) {
     const std::string m = arm_motion.problem();

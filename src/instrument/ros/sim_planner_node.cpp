@@ -198,6 +198,9 @@ int main(int argc, char** argv) {
   params.shape_targets = shape_targets;
   params.render_threads = 2;
   params.input = input;
+  // Upstream's plan_with_trolley names (Planner.cfg), in metres and seconds: 0 m, no trolley.
+  pnh.param("trolley_move_length", params.trolley_move_length, params.trolley_move_length);
+  pnh.param("trolley_time_per_segment", params.trolley_time_per_segment, params.trolley_time_per_segment);
   sim::RedThreshold red_test;  // pointcloud_roi's colour test, as the episode's profile has it
   if (params.upstream_red_test) red_test.test = sim::RedThreshold::Test::kUpstream;
   ros::Publisher camera_pub, roi_pub, done_pub = pnh.advertise<std_msgs::UInt32>("episode_done", 1, true);

@@ -224,20 +224,58 @@ Scene generateProceduralScene(const ProceduralSceneParams& p) {
 }
 
 bool loadSceneSpec(const std::string& spec, Scene* scene, std::string* error) {
+  auto number = [&](const std::string& text, const char* what, unsigned long* out) {
+    char* end = nullptr;
+    *out = std::strtoul(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0') {
+      *error = "scene '" + spec + "': " + what + " must be a whole number";
+      return false;
+    }
+    return true;
+  };
+  if (spec.rfind("procedural-row", 0) == 0) {
+    // procedural-row[:SEED[:PLANTS]]: one long row, as a trolley or gantry scans it.
+    ProceduralSceneParams p;
+    p.plants_per_row = 80;
+    std::string rest = spec.substr(14);
+    if (!rest.empty()) {
+      if (rest[0] != ':') {
+        *error = "scene '" + spec + "': expected 'procedural-row', 'procedural-row:SEED' or 'procedural-row:SEED:PLANTS'";
+        return false;
+      }
+      rest = rest.substr(1);
+      const std::size_t colon = rest.find(':');
+      unsigned long v = 0;
+      if (!number(rest.substr(0, colon), "the seed", &v)) return false;
+      p.seed = static_cast<unsigned>(v);
+      if (colon != std::string::npos) {
+        if (!number(rest.substr(colon + 1), "the number of plants", &v)) return false;
+        if (v < 1 || v > 2000) {
+          *error = "scene '" + spec + "': the number of plants must be 1..2000";
+          return false;
+        }
+        p.plants_per_row = static_cast<int>(v);
+      }
+    }
+    *scene = generateProceduralScene(p);
+    scene->name = "procedural_row_" + std::to_string(p.seed) + "_" + std::to_string(p.plants_per_row);
+    scene->source = spec;
+    // The robot starts at the row's first plant.
+    const double start_x = scene->plants.front().position.x();
+    scene->camera_start_position.x() = start_x;
+    scene->camera_start_look_at.x() = start_x;
+    return true;
+  }
   if (spec.rfind("procedural", 0) == 0) {
     ProceduralSceneParams p;
     if (spec.size() > 10) {
+      unsigned long v = 0;
       if (spec[10] != ':' || spec.size() == 11) {
         *error = "scene '" + spec + "': expected 'procedural' or 'procedural:SEED'";
         return false;
       }
-      char* end = nullptr;
-      const unsigned long seed = std::strtoul(spec.c_str() + 11, &end, 10);
-      if (*end != '\0') {
-        *error = "scene '" + spec + "': the seed must be a whole number";
-        return false;
-      }
-      p.seed = static_cast<unsigned>(seed);
+      if (!number(spec.substr(11), "the seed", &v)) return false;
+      p.seed = static_cast<unsigned>(v);
     }
     *scene = generateProceduralScene(p);
     return true;

@@ -145,6 +145,14 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1e-3, 1.0));
   app.add_option("--plan-overhead", plan_overhead, "seconds per plan besides motion and compute (ideal: 2, paper: 1.5)")
       ->check(CLI::Range(0.0, 1e3));
+  double trolley_move = -1.0, trolley_time = -1.0;
+  app.add_flag_callback("--trolley", [&] { trolley_move = std::max(trolley_move, 1.0); },
+                        "upstream's plan_with_trolley: every 60 s the trolley carries the arm 1 m along the row (+x), "
+                        "the planner samples around it (for procedural-row scenes)");
+  app.add_option("--trolley-move-length", trolley_move, "[m] the trolley's step (implies --trolley; default 1)")
+      ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--trolley-time-per-segment", trolley_time, "[s] time per trolley position (default 60)")
+      ->check(CLI::Range(1.0, 1e5));
   bool save_surfaces = false;
   app.add_flag("--save-surfaces", save_surfaces,
                "also write each trial's final fruit surface cloud (surface_K.ply; fit_cloud reads it)");
@@ -187,6 +195,8 @@ int main(int argc, char** argv) {
   if (red_test == "hsv") base.upstream_red_test = false;
   if (flat_colours) base.textures = false;
   red_test = base.upstream_red_test ? "upstream" : "hsv";
+  if (trolley_move > 0.0 || trolley_time > 0.0) base.trolley_move_length = trolley_move > 0.0 ? trolley_move : 1.0;
+  if (trolley_time > 0.0) base.trolley_time_per_segment = trolley_time;
   if (velocity_scaling >= 0) base.arm_motion.velocity_scaling = base.arm_motion.acceleration_scaling = velocity_scaling;
   if (plan_overhead >= 0) base.view_cost = plan_overhead;
   try {
@@ -343,6 +353,12 @@ int main(int argc, char** argv) {
     body["unreachable"] = {{"sampled", sampled}, {"no_inverse", ik}, {"joint_limits", limits}, {"collision", collision}};
   }
   body["failed_moves_per_trial"] = double(failed_moves) / trials;
+  body["trolley"] = {{"move_length_m", base.trolley_move_length}, {"time_per_segment_s", base.trolley_time_per_segment}};
+  {
+    nlohmann::json moves = nlohmann::json::array();
+    for (const auto& r : results) moves.push_back(r.trolley_moves);
+    body["trolley_moves"] = moves;
+  }
   body["failed_moves"] = failed_per;                // per trial: moves executed into unseen plants
   body["move_attempts"] = attempts_per;             // per trial: candidates tried best first
   body["rounds_without_move"] = idle_per;           // per trial: planning rounds whose every attempt failed

@@ -44,6 +44,14 @@ struct PlannerParams {
   // Hands the estimators' extra targets to the samplers. The product's own switch is the
   // estimator's `shape_targets` parameter; this one stands for a planner built without the patch.
   bool shape_targets = true;
+  // Upstream's plan_with_trolley (Planner.cfg: trolley_move_length 1000 mm,
+  // trolley_time_per_segment 60 s): after each segment's time the trolley carries the arm this far
+  // along the row (+x), and the planner samples in a window of the workspace around it.
+  // 0: no trolley, the whole workspace.
+  double trolley_move_length = 0.0;        // [m]
+  double trolley_time_per_segment = 60.0;  // [s]
+  double trolley_speed = 0.2;              // [m/s]
+  double trolley_window_margin = 0.4;      // [m] the window reaches this far beyond a segment
   double octree_resolution = 0.01;  // [m] the ROI octree's cells
   int octree_pixel_step = 3;   // every n-th pixel (both ways) goes into the 1 cm octree
   double octree_max_range = 1.5;
@@ -115,6 +123,7 @@ struct EpisodeResult {
   int failed_moves = 0;  // planned moves whose goal hit plants the map had not seen
   int failed_moves_shape = 0;  // of which toward views of the estimators' targets
   int moves = 0, moves_shape = 0;  // successful moves, of which toward views of their targets
+  int trolley_moves = 0;
   int planning_rounds = 0, rounds_without_move = 0;
   std::vector<FruitEstimate> final_fruits;  // the estimator's scored fruits after the last view
   int dropped_views = 0;       // views that threw and were skipped

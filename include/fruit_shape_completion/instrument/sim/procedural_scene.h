@@ -24,7 +24,10 @@ struct ProceduralSceneParams {
 
 Scene generateProceduralScene(const ProceduralSceneParams& params = ProceduralSceneParams());
 
-// "procedural" or "procedural:SEED" generates; anything else is a scene file path.
+// "procedural" or "procedural:SEED" generates the default glasshouse; "procedural-row",
+// "procedural-row:SEED" or "procedural-row:SEED:PLANTS" one row of PLANTS plants (default 80,
+// about 320 fruits over 36 m), the camera starting at its first plant; anything else is a scene
+// file path.
 bool loadSceneSpec(const std::string& spec, Scene* scene, std::string* error);
 
 // Writes DIR/scene.yaml, DIR/scene.mtl and one DIR/plant_N.obj per plant (plant frame).

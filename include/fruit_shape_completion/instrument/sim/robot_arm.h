@@ -52,6 +52,11 @@ class RobotArm {
   bool collides(const ArmState& state, const DistanceField& obstacles) const;
   const DistanceField& plants() const { return plants_; }
   const RobotMount& mount() const { return mount_; }
+  // Where a gantry's base may go from now on (a trolley that carried it along the row).
+  void setBaseRange(const Eigen::Vector2d& xy_min, const Eigen::Vector2d& xy_max) {
+    mount_.xy_min = xy_min;
+    mount_.xy_max = xy_max;
+  }
 
  private:
   RobotMount mount_;
