@@ -24,8 +24,11 @@ struct TsdfVoxel {
 
 struct TsdfMapParams {
   double voxel_size = 0.004;  // [m]
-  int voxels_per_side = 64;   // per block
-  // Memory the map's blocks may reserve [MiB]; a block is 2 MiB at 64 voxels a side. At the
+  // Per block. The paper's voxblox map has 64 (25.6 cm blocks, 2 MiB each, mostly empty around
+  // a fruit); 16 (6.4 cm, 32 KiB) holds a mapped fruit in about 0.3 MiB instead of 3, with the
+  // same voxels and the same fits (docs/benchmarks.md, "A greenhouse row").
+  int voxels_per_side = 16;
+  // Memory the map's blocks may reserve [MiB]; a block is 32 KiB at 16 voxels a side. At the
   // budget no block is created: the blocks held keep updating, the parts of views that need new
   // ones are dropped, counted and reported (IntegrationReport::over_budget).
   double memory_budget_mb = 2048.0;

@@ -14,6 +14,7 @@
 #include "bench_episode.h"
 
 #include <chrono>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -74,7 +75,7 @@ static void BM_RowScan(benchmark::State& state) {
   const std::size_t n = rec.views.size();
   std::vector<double> early, late;
   std::size_t fruits = 0;
-  double map_mib = 0.0;
+  double map_mib = 0.0, save_ms = 0.0, load_ms = 0.0, file_mib = 0.0;
   const PointList none;
   for (auto _ : state) {
     host::SuperellipsoidEstimator estimator;
@@ -93,6 +94,19 @@ static void BM_RowScan(benchmark::State& state) {
     fruits = 0;
     for (const auto& f : estimator.fruits()) fruits += f.accepted;
     map_mib = estimator.status().memory_mb;
+    // The row's map saved and loaded back (atomic write, then a fresh estimator reads it).
+    const std::string path = (std::filesystem::temp_directory_path() / "fsc_bench_row.tsdf").string();
+    std::string error;
+    const auto s0 = std::chrono::steady_clock::now();
+    if (!estimator.saveMap(path, &error)) state.SkipWithError(("save: " + error).c_str());
+    const auto s1 = std::chrono::steady_clock::now();
+    host::SuperellipsoidEstimator reloaded;
+    if (!reloaded.loadMap(path, &error)) state.SkipWithError(("load: " + error).c_str());
+    const auto s2 = std::chrono::steady_clock::now();
+    save_ms = std::chrono::duration<double, std::milli>(s1 - s0).count();
+    load_ms = std::chrono::duration<double, std::milli>(s2 - s1).count();
+    file_mib = static_cast<double>(std::filesystem::file_size(path)) / 1048576.0;
+    std::filesystem::remove(path);
   }
   state.counters["views"] = static_cast<double>(n);
   state.counters["truth_fruits"] = rec.truth_fruits;
@@ -103,6 +117,9 @@ static void BM_RowScan(benchmark::State& state) {
   state.counters["late_p95_ms"] = bench::quantile(late, 0.95);
   state.counters["map_MiB"] = map_mib;
   state.counters["MiB_per_fruit"] = fruits > 0 ? map_mib / static_cast<double>(fruits) : 0.0;
+  state.counters["save_ms"] = save_ms;
+  state.counters["load_ms"] = load_ms;
+  state.counters["file_MiB"] = file_mib;
   state.SetLabel(kRowScene);
 }
 BENCHMARK(BM_RowScan)->Unit(benchmark::kMillisecond)->Iterations(1);

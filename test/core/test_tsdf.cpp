@@ -304,13 +304,16 @@ TEST(TsdfMap, MemoryCropBoxBlockLimitAndReset) {
   crop.use_crop_box = true;
   crop.crop_min = Eigen::Vector3d(-0.2, -0.2, 0.2);
   crop.crop_max = Eigen::Vector3d(0.2, 0.2, 0.8);
-  TsdfMap cropped(crop), full;
+  crop.voxels_per_side = 64;  // the paper's blocks: the sizes below are worked out for them
+  TsdfMapParams paper_blocks;
+  paper_blocks.voxels_per_side = 64;
+  TsdfMap cropped(crop), full(paper_blocks);
   integrateViews(cropped, TsdfIntegrator(), scene, Eigen::Vector3d(0.25, 0, 0.5), 6);
   integrateViews(full, TsdfIntegrator(), scene, Eigen::Vector3d(0.25, 0, 0.5), 6);
   for (const auto& p : extractSurfacePoints(cropped)) EXPECT_LT(p.x(), 0.2 + 1e-9);
   EXPECT_LT(cropped.memoryBytes(), full.memoryBytes());
   EXPECT_GE(full.memoryBytes(), full.blockCount() * 64 * 64 * 64 * sizeof(TsdfVoxel));
-  TsdfMapParams limited;
+  TsdfMapParams limited = paper_blocks;
   limited.memory_budget_mb = 3.0;  // one 2 MiB block
   TsdfMap small(limited);
   integrateViews(small, TsdfIntegrator(), scene, Eigen::Vector3d(0.25, 0, 0.5), 2);
@@ -431,7 +434,9 @@ TEST(TsdfMap, BlockSideDoesNotChangeTheMap) {
   ASSERT_EQ(a.size(), c.size());
   for (std::size_t i = 0; i < a.size(); ++i) ASSERT_LT((a[i] - c[i]).norm(), 1e-12) << i;
 
-  TsdfMap one;
+  TsdfMapParams paper_blocks;
+  paper_blocks.voxels_per_side = 64;  // the index below is worked out for 64-voxel blocks
+  TsdfMap one(paper_blocks);
   TsdfVoxel v;
   v.distance = 0.001f;
   v.weight = 2.0f;
@@ -475,6 +480,7 @@ TEST(TsdfMap, BlockSideDoesNotChangeTheMap) {
 // second fruit that needs new blocks is dropped, and the report counts and says so.
 TEST(TsdfMap, AtItsMemoryBudgetNewBlocksAreRefusedCountedAndReported) {
   TsdfMapParams params;
+  params.voxels_per_side = 64;     // the paper's 25.6 cm blocks, as the positions below assume
   params.memory_budget_mb = 5.0;  // two 2 MiB blocks
   EXPECT_EQ(params.maxBlocks(), 2u);
   TsdfMap map(params);
@@ -509,8 +515,8 @@ TEST(TsdfMap, AtItsMemoryBudgetNewBlocksAreRefusedCountedAndReported) {
   r = integ.integrate(map, scan.points, cam.position);
   EXPECT_EQ(r.over_budget, 0u);
   EXPECT_GT(r.voxel_updates, 0u);
-  TsdfMapParams none;
-  none.memory_budget_mb = 1.0;  // less than a block
+  TsdfMapParams none = params;
+  none.memory_budget_mb = 1.0;  // less than a 2 MiB block
   EXPECT_THROW(TsdfMap{none}, std::invalid_argument);
 }
 
