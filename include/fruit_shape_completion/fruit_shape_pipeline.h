@@ -9,6 +9,7 @@
 #include <fruit_shape_completion/fruit_estimate.h>
 #include <fruit_shape_completion/missing_surface.h>
 #include <fruit_shape_completion/superellipsoid_fit.h>
+#include <fruit_shape_completion/surface_blocks.h>
 #include <fruit_shape_completion/surface_normals.h>
 
 #include <atomic>
@@ -48,7 +49,8 @@ struct PipelineParams {
 struct PipelineStats {
   int input_points = 0;
   int non_finite_points = 0;  // skipped
-  int clusters = 0;
+  int clusters = 0;  // examined this update (around the changed blocks when only those were re-clustered)
+  bool local = false;  // only the clusters around the changed blocks were formed again
   int fitted = 0;  // fits run this update (others reused)
   int kept = 0;    // changed clusters whose previous fit still explained them (not refitted)
   int splits = 0;  // clusters split into several fruits
@@ -67,8 +69,12 @@ class FruitShapePipeline {
   // Processes a new surface cloud (the whole current fruit surface, not a delta) and returns
   // all fruits, accepted or not, largest cluster first. If `cancel` becomes true it returns
   // between two clusters with the previous update's fruits and tracks unchanged.
+  // `blocks` (the cloud's blocks and which changed): clusters are formed again only around the
+  // changed blocks, as far as they reach, and every other fruit is carried over as it was; the
+  // fruits are those of a whole update (the same clusters; ids and order may differ).
   const std::vector<FruitEstimate>& update(const PointList& surface_cloud,
-                                           const std::atomic<bool>* cancel = nullptr);
+                                           const std::atomic<bool>* cancel = nullptr,
+                                           const SurfaceBlocks* blocks = nullptr);
 
   const std::vector<FruitEstimate>& fruits() const { return fruits_; }
   const PipelineStats& lastStats() const { return stats_; }
@@ -77,6 +83,7 @@ class FruitShapePipeline {
   void setParams(const PipelineParams& params) {
     params.validate();
     params_ = params;
+    local_ready_ = false;  // other clusters: the next update forms them all again
   }
   void reset();
 
@@ -88,6 +95,7 @@ class FruitShapePipeline {
     std::size_t fitted_points = 0;  // of the points its fit was made on (kept fits do not grow it)
     std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells of this fruit's points
     std::size_t split_points = 0;  // a part of a split: its cluster's size when the split was decided
+    std::vector<GridCell> blocks;  // the surface blocks its points lie in (local updates)
   };
   using Parts = std::vector<std::pair<PointList, FruitEstimate>>;
 
@@ -124,7 +132,15 @@ class FruitShapePipeline {
   int stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
                        const std::vector<char>& reused) const;
 
+  // The clusters around the changed blocks, as far as they reach (indices into `cloud`, size
+  // filtered, largest first); moves the tracks they do not reach to `untouched`.
+  std::vector<std::vector<int>> localClusters(const PointList& cloud, const SurfaceBlocks& blocks,
+                                              std::vector<Track>* untouched);
+
   PipelineParams params_;
+  bool local_ready_ = false;     // the tracks know their blocks, of this block size
+  double local_block_size_ = 0.0;
+  std::vector<GridCell> pending_changed_;  // changed blocks of updates that were cancelled
   std::vector<Track> tracks_;
   std::vector<FruitEstimate> fruits_;
   PipelineStats stats_;

@@ -1,5 +1,6 @@
 #pragma once
 // The fruit surface of a TsdfMap: a point cloud for the fitter, a triangle mesh for display.
+#include <fruit_shape_completion/surface_blocks.h>
 #include <fruit_shape_completion/tsdf_map.h>
 
 #include <cstdint>
@@ -30,6 +31,9 @@ class IncrementalSurfaceExtractor {
   explicit IncrementalSurfaceExtractor(const SurfaceExtractionParams& params = {}) : params_(params) {}
   PointList extract(const TsdfMap& map);
   std::size_t lastBlocksExtracted() const { return last_extracted_; }
+  // The last cloud's blocks and the blocks changed since the cloud before (all of them after
+  // the map was cleared or loaded). Without projection only: a projected point may leave its block.
+  const SurfaceBlocks& lastBlocks() const { return last_blocks_; }
 
  private:
   struct CachedBlock {
@@ -40,6 +44,7 @@ class IncrementalSurfaceExtractor {
   std::uint64_t epoch_ = 0;
   std::unordered_map<std::uint64_t, CachedBlock> blocks_;  // by block coordinates (packCellKey)
   std::size_t last_extracted_ = 0;
+  SurfaceBlocks last_blocks_;
 };
 
 struct TriangleMesh {

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <random>
 #include <thread>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -599,4 +600,64 @@ TEST(TsdfMap, IncrementalSurfaceExtractionTouchesOnlyChangedBlocks) {
     expectSame();
     EXPECT_EQ(incremental.lastBlocksExtracted(), map.blockCount());
   }
+}
+
+// A row scanned view by view: the pipeline that re-clusters only around the blocks each view
+// changed finds what the one that clusters the whole surface every time finds (the same fruits,
+// the same volumes), while it forms far fewer clusters late in the row.
+TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
+  AnalyticScene scene;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Superellipsoid> truth;
+  for (int i = 0; i < 14; ++i) {
+    Superellipsoid s = sphere(0.025 + 0.015 * u(rng), Eigen::Vector3d(0.12 * i, 0.02 * u(rng), 0.45 + 0.1 * u(rng)));
+    s.c *= 1.0 + 0.3 * u(rng);
+    if (i % 5 == 3) s.t.x() = truth.back().t.x() + truth.back().a + s.a + 0.004;  // touching its neighbour
+    truth.push_back(s);
+    scene.shapes.push_back(s);
+  }
+  TsdfMap map;
+  const TsdfIntegrator integ;
+  IncrementalSurfaceExtractor extractor;
+  FruitShapePipeline local, whole;
+  int local_clusters_late = 0, whole_clusters_late = 0, views = 0, local_updates = 0;
+  for (double x = -0.1; x <= 0.12 * 14; x += 0.05, ++views) {
+    for (const double side : {-1.0, 1.0}) {
+      const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(x, side * 0.35, 0.55),
+                                                         Eigen::Vector3d(x + 0.05, 0.0, 0.5), 160, 120);
+      const DepthScan scan = renderDepth(scene, cam, 0.001, 100 + views);
+      PointList fruit;
+      for (std::size_t k = 0; k < scan.points.size(); ++k)
+        if (scan.labels[k] < static_cast<int>(scene.shapes.size())) fruit.push_back(scan.points[k]);
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.linear() = cam.rotation;
+      pose.translation() = cam.position;
+      ASSERT_TRUE(integ.integrate(map, fruit, pose).ok());
+      const PointList surface = extractor.extract(map);
+      const auto& a = local.update(surface, nullptr, &extractor.lastBlocks());
+      const auto& b = whole.update(surface);
+      local_updates += local.lastStats().local;
+      if (x > 1.0) {
+        local_clusters_late += local.lastStats().clusters;
+        whole_clusters_late += whole.lastStats().clusters;
+      }
+      std::vector<const FruitEstimate*> fa, fb;
+      for (const auto& f : a) if (f.accepted) fa.push_back(&f);
+      for (const auto& f : b) if (f.accepted) fb.push_back(&f);
+      ASSERT_EQ(fa.size(), fb.size()) << "view at x = " << x;
+      for (const FruitEstimate* f : fb) {
+        const FruitEstimate* best = nullptr;
+        for (const FruitEstimate* g : fa)
+          if (!best || (g->center() - f->center()).norm() < (best->center() - f->center()).norm()) best = g;
+        ASSERT_LT((best->center() - f->center()).norm(), 1e-3) << "view at x = " << x;
+        EXPECT_NEAR(best->volume, f->volume, 0.01 * f->volume) << "view at x = " << x;
+      }
+    }
+  }
+  EXPECT_GT(local_updates, 2 * views - 2);  // all but the first
+  int found = 0;
+  for (const auto& f : whole.fruits()) found += f.accepted;
+  EXPECT_GE(found, 12);
+  EXPECT_LT(2 * local_clusters_late, whole_clusters_late);
 }

@@ -101,6 +101,8 @@ FruitShapePipeline::FruitShapePipeline(const PipelineParams& params) : params_(p
 }
 
 void FruitShapePipeline::reset() {
+  local_ready_ = false;
+  pending_changed_.clear();
   tracks_.clear();
   fruits_.clear();
   stats_ = PipelineStats();
@@ -207,7 +209,8 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e) {
 }
 
 const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& surface_cloud,
-                                                             const std::atomic<bool>* cancel) {
+                                                             const std::atomic<bool>* cancel,
+                                                             const SurfaceBlocks* blocks) {
   const auto start = std::chrono::steady_clock::now();
   stats_ = PipelineStats();
   stats_.input_points = static_cast<int>(surface_cloud.size());
@@ -221,15 +224,28 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
   }
 
   const auto cluster_start = std::chrono::steady_clock::now();
-  const auto clusters = euclideanClusters(finite, params_.clustering);
+  if (blocks != nullptr)
+    pending_changed_.insert(pending_changed_.end(), blocks->changed.begin(), blocks->changed.end());
+  // Around the changed blocks only, when the tracks know their blocks of this size; the cloud's
+  // ranges index `finite` only when nothing was skipped.
+  const bool local = blocks != nullptr && local_ready_ && !blocks->all_changed && stats_.non_finite_points == 0 &&
+                     blocks->block_size == local_block_size_ && blocks->block_size > params_.clustering.tolerance;
+  std::vector<Track> untouched;  // fruits the changed blocks do not reach: carried over as they are
+  const auto clusters = local ? localClusters(finite, *blocks, &untouched) : euclideanClusters(finite, params_.clustering);
+  stats_.local = local;
   stats_.clusters = static_cast<int>(clusters.size());
   stats_.cluster_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - cluster_start).count();
+  // A cancelled update leaves the tracks as they were.
+  auto abandon = [&]() -> const std::vector<FruitEstimate>& {
+    for (auto& t : untouched) tracks_.push_back(std::move(t));
+    return fruits_;
+  };
 
   std::vector<Track> next;      // fruits carried over unchanged
   std::vector<Track> pending;   // fruits fitted now, ids still to assign
   std::vector<char> reused(tracks_.size(), 0);
   for (const auto& cluster : clusters) {
-    if (cancel && cancel->load()) return fruits_;
+    if (cancel && cancel->load()) return abandon();
     PointList pts;
     pts.reserve(cluster.size());
     for (int i : cluster) pts.push_back(finite[i]);
@@ -316,6 +332,24 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
     pending[f].estimate.id = id[f] >= 0 ? id[f] : next_id_++;
     next.push_back(std::move(pending[f]));
   }
+  // The blocks of the fruits formed now, for the next local update.
+  if (blocks != nullptr && blocks->block_size > 0.0) {
+    const double inv = 1.0 / blocks->block_size;
+    for (auto& t : next) {  // in a local update, the fruits around the changed blocks only
+      std::unordered_set<std::uint64_t> keys;
+      t.blocks.clear();
+      for (const auto& p : t.estimate.points) {
+        const GridCell c = cellOf(p, inv);
+        if (keys.insert(packCellKey(c)).second) t.blocks.push_back(c);
+      }
+    }
+    local_ready_ = true;
+    local_block_size_ = blocks->block_size;
+    pending_changed_.clear();
+  } else {
+    local_ready_ = false;
+  }
+  for (auto& t : untouched) next.push_back(std::move(t));
   std::stable_sort(next.begin(), next.end(),
                    [](const Track& l, const Track& r) { return l.estimate.n_points > r.estimate.n_points; });
   for (const auto& t : next) stats_.accepted += t.estimate.accepted;

@@ -66,6 +66,7 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
 }
 
 PointList IncrementalSurfaceExtractor::extract(const TsdfMap& map) {
+  const bool fresh = map.epoch() != epoch_ || blocks_.empty();
   if (map.epoch() != epoch_) {
     blocks_.clear();
     epoch_ = map.epoch();
@@ -89,21 +90,33 @@ PointList IncrementalSurfaceExtractor::extract(const TsdfMap& map) {
   next.reserve(map.blockCount());
   PointList out;
   last_extracted_ = 0;
+  last_blocks_ = SurfaceBlocks();
+  last_blocks_.block_size = map.voxelsPerSide() * map.voxelSize();
+  last_blocks_.all_changed = fresh;
   map.forEachBlock([&](const TsdfBlock& block) {
-    const std::uint64_t key = packCellKey(blockCoordsOf(map, block));
+    const GridCell b = blockCoordsOf(map, block);
+    const std::uint64_t key = packCellKey(b);
     CachedBlock entry;
     const auto it = blocks_.find(key);
     if (it != blocks_.end() && !changed.count(key)) {
       entry = std::move(it->second);
+      blocks_.erase(it);
     } else {
       appendBlockSurface(map, block, params_, &entry.points);
       ++last_extracted_;
+      const bool same = it != blocks_.end() && it->second.points == entry.points;
+      if (!same) last_blocks_.changed.push_back(b);
+      if (it != blocks_.end()) blocks_.erase(it);
     }
     entry.revision = block.revision;
+    if (!entry.points.empty()) last_blocks_.ranges.push_back({b, out.size(), out.size() + entry.points.size()});
     out.insert(out.end(), entry.points.begin(), entry.points.end());
     next.emplace(key, std::move(entry));
   });
-  blocks_.swap(next);  // blocks no longer in the map are dropped
+  // Blocks no longer in the map are dropped: their points went.
+  for (const auto& [key, entry] : blocks_)
+    if (!entry.points.empty()) last_blocks_.changed.push_back(cellOf(entry.points.front(), 1.0 / last_blocks_.block_size));
+  blocks_.swap(next);
   return out;
 }
 

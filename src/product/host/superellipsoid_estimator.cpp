@@ -141,19 +141,22 @@ void SuperellipsoidEstimator::update() {
     }
   }
   PointList surface;
+  SurfaceBlocks blocks;
   double surface_seconds = 0.0;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
     if (!dirty_) return;
     const auto start = std::chrono::steady_clock::now();
     surface = surface_extractor_.extract(map_);
+    blocks = surface_extractor_.lastBlocks();
     surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     dirty_ = false;
   }
   // The fit runs on the surface copy, with the map free for new views and the last results
   // free for queries.
   if (cancel_) return;
-  pipeline_.update(surface, &cancel_);
+  // Projected points may leave their blocks: then the whole surface is clustered each time.
+  pipeline_.update(surface, &cancel_, params_.surface.project_to_zero_crossing ? nullptr : &blocks);
   if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
   std::vector<FruitEstimate> estimates = pipeline_.fruits();
   ShapeTargets targets;

@@ -1,0 +1,107 @@
+// Clusters formed again only around the blocks a view changed (FruitShapePipeline::update with
+// SurfaceBlocks). A cluster is a connected component: one that reaches a changed block is
+// formed from the changed blocks grown until no such cluster has a point outside them; every
+// cluster that reaches none is the same as before, and so is its fruit.
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
+
+#include <algorithm>
+#include <limits>
+#include <unordered_map>
+#include <unordered_set>
+
+namespace fruit_shape_completion {
+
+std::vector<std::vector<int>> FruitShapePipeline::localClusters(const PointList& cloud, const SurfaceBlocks& blocks,
+                                                                std::vector<Track>* untouched) {
+  const double inv = 1.0 / blocks.block_size;
+  std::unordered_map<std::uint64_t, GridCell> grown;  // the blocks formed again, by key
+  auto grow = [&](const GridCell& c) { return grown.emplace(packCellKey(c), c).second; };
+  for (const GridCell& c : pending_changed_) grow(c);
+  // The blocks and their neighbours: a point within the cluster tolerance (less than a block)
+  // of a grown block's point lies in one of them.
+  auto nearGrown = [&]() {
+    std::unordered_set<std::uint64_t> near;
+    near.reserve(27 * grown.size());
+    for (const auto& [key, c] : grown)
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) near.insert(packCellKey(c + GridCell(dx, dy, dz)));
+    return near;
+  };
+  // Fruits with points in the grown blocks are formed again, with every part of their cluster
+  // (a split), and all their blocks grow the region: the rest of such a fruit may now be a
+  // cluster of its own.
+  std::vector<char> touched(tracks_.size(), 0);
+  auto touchTracks = [&]() {
+    bool more = false;
+    for (std::size_t k = 0; k < tracks_.size(); ++k) {
+      if (touched[k]) continue;
+      for (const GridCell& b : tracks_[k].blocks)
+        if (grown.count(packCellKey(b))) {
+          touched[k] = 1;
+          break;
+        }
+      if (!touched[k]) continue;
+      for (std::size_t j = 0; j < tracks_.size(); ++j)
+        if (!touched[j] && tracks_[j].cluster_signature == tracks_[k].cluster_signature &&
+            tracks_[j].cluster_points == tracks_[k].cluster_points)
+          touched[j] = 1;
+      more = true;
+    }
+    if (!more) return false;
+    bool grew = false;
+    for (std::size_t k = 0; k < tracks_.size(); ++k)
+      if (touched[k])
+        for (const GridCell& b : tracks_[k].blocks) grew = grow(b) || grew;
+    return grew;
+  };
+
+  ClusteringParams every = params_.clustering;  // all components: a truncated one may be small
+  every.min_size = 1;
+  every.max_size = std::numeric_limits<int>::max();
+  std::vector<std::vector<int>> found;
+  for (;;) {
+    if (touchTracks()) continue;
+    const std::unordered_set<std::uint64_t> near = nearGrown();
+    std::vector<int> index;       // into cloud, ascending (the ranges are in the cloud's order)
+    std::vector<char> in_grown;   // per index
+    for (const auto& r : blocks.ranges) {
+      const std::uint64_t key = packCellKey(r.block);
+      if (!near.count(key)) continue;
+      const char g = grown.count(key) ? 1 : 0;
+      for (std::size_t i = r.begin; i < r.end; ++i) {
+        index.push_back(static_cast<int>(i));
+        in_grown.push_back(g);
+      }
+    }
+    PointList sub;
+    sub.reserve(index.size());
+    for (int i : index) sub.push_back(cloud[static_cast<std::size_t>(i)]);
+    found.clear();
+    bool grew = false;
+    for (const auto& component : euclideanClusters(sub, every)) {
+      bool reaches = false;
+      for (int j : component) reaches = reaches || in_grown[static_cast<std::size_t>(j)];
+      if (!reaches) continue;  // a cluster of the ring only: not changed (or cut off here)
+      for (int j : component)
+        if (!in_grown[static_cast<std::size_t>(j)]) grew = grow(cellOf(sub[static_cast<std::size_t>(j)], inv)) || grew;
+      std::vector<int> points;
+      points.reserve(component.size());
+      for (int j : component) points.push_back(index[static_cast<std::size_t>(j)]);
+      found.push_back(std::move(points));
+    }
+    if (!grew) break;
+  }
+  std::vector<std::vector<int>> clusters;
+  for (auto& c : found)
+    if (static_cast<int>(c.size()) >= params_.clustering.min_size && static_cast<int>(c.size()) <= params_.clustering.max_size)
+      clusters.push_back(std::move(c));
+  std::stable_sort(clusters.begin(), clusters.end(), [](const auto& l, const auto& r) { return l.size() > r.size(); });
+  std::vector<Track> kept;
+  for (std::size_t k = 0; k < tracks_.size(); ++k)
+    (touched[k] ? kept : *untouched).push_back(std::move(tracks_[k]));
+  tracks_.swap(kept);
+  return clusters;
+}
+
+}  // namespace fruit_shape_completion
