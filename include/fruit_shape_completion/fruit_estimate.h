@@ -25,6 +25,7 @@ struct FruitEstimate {
   double fit_seconds = 0.0;
   bool refitted = false;  // false: points unchanged since the previous update, fit reused
   PointList missing_surface;  // predicted unseen surface samples (accepted fruits only)
+  PointList missing_normals;  // the fitted surface's outward unit normal at each of them
   PointList points;           // the observed points of this fruit (its cluster, or its part)
 
   Eigen::Vector3d center() const { return shape.t; }

@@ -77,6 +77,9 @@ class FruitShapePipeline {
                                            const SurfaceBlocks* blocks = nullptr);
 
   const std::vector<FruitEstimate>& fruits() const { return fruits_; }
+  // The last update's fruits, moved out (fruits() is empty until the next update): saves a
+  // host that keeps its own copy a second copy of every fruit's points.
+  std::vector<FruitEstimate> takeFruits() { return std::move(fruits_); }
   const PipelineStats& lastStats() const { return stats_; }
   const PipelineParams& params() const { return params_; }
   // From the next update on; throws std::invalid_argument (nothing changed) for bad values.

@@ -28,6 +28,9 @@ struct ShapeTargets {
   PointList points, directions;
 };
 
+// The fitted surface's outward unit normal at its point s.
+Eigen::Vector3d outwardNormal(const Superellipsoid& shape, const Point& s);
+
 // The share of a fruit's surface samples that were seen (1 - missing / samples).
 double seenCoverage(const FruitEstimate& fruit, int surface_samples);
 

@@ -197,9 +197,14 @@ FruitEstimate FruitShapePipeline::keptEstimate(const FruitEstimate& fit, const P
 
 void FruitShapePipeline::predictMissing(FruitEstimate* e) {
   e->missing_surface.clear();
+  e->missing_normals.clear();
   if (!e->accepted || params_.missing.samples <= 0) return;
   const auto start = std::chrono::steady_clock::now();
   e->missing_surface = predictMissingSurface(e->shape, e->points, params_.missing);
+  // Computed once per fit, not at every hand-over of the targets.
+  e->missing_normals.clear();
+  e->missing_normals.reserve(e->missing_surface.size());
+  for (const auto& s : e->missing_surface) e->missing_normals.push_back(outwardNormal(e->shape, s));
   const Superellipsoid& se = e->shape;
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
   const VolumeInterval ci = volumeInterval90(e->volume, seenCoverage(*e, params_.missing.samples), e->rms, at_bound);
@@ -214,14 +219,14 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
   const auto start = std::chrono::steady_clock::now();
   stats_ = PipelineStats();
   stats_.input_points = static_cast<int>(surface_cloud.size());
-  PointList finite;
-  finite.reserve(surface_cloud.size());
-  for (const auto& p : surface_cloud) {
-    if (p.allFinite())
-      finite.push_back(p);
-    else
-      ++stats_.non_finite_points;
+  for (const auto& p : surface_cloud) stats_.non_finite_points += p.allFinite() ? 0 : 1;
+  PointList filtered;  // a copy only when some point must go
+  if (stats_.non_finite_points > 0) {
+    filtered.reserve(surface_cloud.size());
+    for (const auto& p : surface_cloud)
+      if (p.allFinite()) filtered.push_back(p);
   }
+  const PointList& finite = stats_.non_finite_points > 0 ? filtered : surface_cloud;
 
   const auto cluster_start = std::chrono::steady_clock::now();
   if (blocks != nullptr)

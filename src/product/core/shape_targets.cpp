@@ -20,10 +20,8 @@ double seenCoverage(const FruitEstimate& fruit, int surface_samples) {
   return std::clamp(1.0 - static_cast<double>(fruit.missing_surface.size()) / surface_samples, 0.0, 1.0);
 }
 
-namespace {
-
-// The implicit function's gradient by central differences: the outward normal, also where the
-// closed form is singular (the exponents' poles and edges).
+// By central differences of the implicit function: also where the closed form is singular (the
+// exponents' poles and edges).
 Eigen::Vector3d outwardNormal(const Superellipsoid& shape, const Point& s) {
   const double h = 1e-4;
   Eigen::Vector3d g;
@@ -37,8 +35,6 @@ Eigen::Vector3d outwardNormal(const Superellipsoid& shape, const Point& s) {
   return radial.norm() > 1e-12 ? Eigen::Vector3d(radial.normalized()) : Eigen::Vector3d::UnitZ();
 }
 
-}  // namespace
-
 ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int surface_samples,
                                 const ShapeTargetParams& params) {
   ShapeTargets targets;
@@ -49,8 +45,9 @@ ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int su
     const std::size_t keep = params.per_fruit > 0 ? std::min<std::size_t>(n, params.per_fruit) : n;
     // Evenly strided: the samples come in surface-parameter order, so a stride spreads them.
     for (std::size_t i = 0; i < keep; ++i) {
-      const Point& s = f.missing_surface[i * n / keep];
-      const Eigen::Vector3d normal = outwardNormal(f.shape, s);
+      const std::size_t k = i * n / keep;
+      const Point& s = f.missing_surface[k];
+      const Eigen::Vector3d normal = f.missing_normals.size() == n ? f.missing_normals[k] : outwardNormal(f.shape, s);
       targets.points.push_back(s + params.offset * normal);
       targets.directions.push_back(params.view_side ? normal : Eigen::Vector3d::Zero());
     }

@@ -158,7 +158,7 @@ void SuperellipsoidEstimator::update() {
   // Projected points may leave their blocks: then the whole surface is clustered each time.
   pipeline_.update(surface, &cancel_, params_.surface.project_to_zero_crossing ? nullptr : &blocks);
   if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
-  std::vector<FruitEstimate> estimates = pipeline_.fruits();
+  std::vector<FruitEstimate> estimates = pipeline_.takeFruits();
   ShapeTargets targets;
   if (params_.shape_targets) targets = selectShapeTargets(estimates, pipeline_.params().missing.samples, params_.targets);
   {
