@@ -44,6 +44,7 @@ class IncrementalSurfaceExtractor {
   std::uint64_t epoch_ = 0;
   std::unordered_map<std::uint64_t, CachedBlock> blocks_;  // by block coordinates (packCellKey)
   std::size_t last_extracted_ = 0;
+  std::size_t last_total_ = 0;  // points of the last cloud
   SurfaceBlocks last_blocks_;
 };
 

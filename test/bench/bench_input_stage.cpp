@@ -9,7 +9,10 @@
 #include <fruit_shape_completion/instrument/sim/procedural_scene.h>
 
 #include <pcl/features/organized_edge_detection.h>
+#include <pcl/common/transforms.h>
+#include <pcl/filters/conditional_removal.h>
 #include <pcl/filters/statistical_outlier_removal.h>
+#include <pcl/filters/voxel_grid.h>
 #include <pcl/point_types.h>
 
 #include "bench_episode.h"
@@ -182,3 +185,60 @@ static void BM_InputStageOutliersPcl(benchmark::State& state) {
   });
 }
 BENCHMARK(BM_InputStageOutliersPcl)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// The yardstick of the per-view goals (docs/benchmarks.md): pointcloud_roi's own chain with PCL
+// on the same frames, in its order (../shared/upstream/README.md): the organized XYZRGB cloud
+// (fromROSMsg's copy), transformed into the map frame, VoxelGrid with 1 cm leaves, the HSI red
+// test (ConditionalRemoval, PackedHSIComparison: h in [-20, 35], s >= 30, i >= 30),
+// StatisticalOutlierRemoval over the red indices with PCL's defaults (mean_k 1, stddev 0).
+// Machines of this kind differ by 1.5x; a figure against this chain from the same run does not.
+static void BM_PointcloudRoiChainPcl(benchmark::State& state) {
+  using Cloud = pcl::PointCloud<pcl::PointXYZRGB>;
+  perFrame(state, [&](const OrganizedFrame& f, const Eigen::Isometry3d& pose) {
+    Cloud::Ptr cloud(new Cloud(f.width, f.height));
+    for (std::size_t px = 0; px < f.pixels(); ++px) {
+      pcl::PointXYZRGB& p = (*cloud)[px];
+      p.x = f.xyz[3 * px];
+      p.y = f.xyz[3 * px + 1];
+      p.z = f.xyz[3 * px + 2];
+      p.r = f.rgb[3 * px];
+      p.g = f.rgb[3 * px + 1];
+      p.b = f.rgb[3 * px + 2];
+    }
+    cloud->is_dense = false;
+    Cloud::Ptr in_map(new Cloud);
+    pcl::transformPointCloud(*cloud, *in_map, pose.matrix().cast<float>());
+    Cloud::Ptr grid(new Cloud);
+    pcl::VoxelGrid<pcl::PointXYZRGB> voxels;
+    voxels.setInputCloud(in_map);
+    voxels.setLeafSize(0.01f, 0.01f, 0.01f);
+    voxels.filter(*grid);
+    pcl::ConditionAnd<pcl::PointXYZRGB>::Ptr red(new pcl::ConditionAnd<pcl::PointXYZRGB>);
+    using Hsi = pcl::PackedHSIComparison<pcl::PointXYZRGB>;
+    red->addComparison(Hsi::ConstPtr(new Hsi("h", pcl::ComparisonOps::GE, -20)));
+    red->addComparison(Hsi::ConstPtr(new Hsi("h", pcl::ComparisonOps::LE, 35)));
+    red->addComparison(Hsi::ConstPtr(new Hsi("s", pcl::ComparisonOps::GE, 30)));
+    red->addComparison(Hsi::ConstPtr(new Hsi("i", pcl::ComparisonOps::GE, 30)));
+    pcl::ConditionalRemoval<pcl::PointXYZRGB> removal(true);
+    removal.setCondition(red);
+    removal.setInputCloud(grid);
+    Cloud red_points;
+    removal.filter(red_points);
+    // The red indices into the 1 cm cloud: those ConditionalRemoval kept.
+    pcl::IndicesConstPtr removed = removal.getRemovedIndices();
+    std::vector<char> gone(grid->size(), 0);
+    for (int i : *removed) gone[static_cast<std::size_t>(i)] = 1;
+    pcl::IndicesPtr kept(new pcl::Indices);
+    for (std::size_t i = 0; i < grid->size(); ++i)
+      if (!gone[i]) kept->push_back(static_cast<int>(i));
+    pcl::StatisticalOutlierRemoval<pcl::PointXYZRGB> sor;
+    sor.setInputCloud(grid);
+    sor.setIndices(kept);
+    sor.setMeanK(1);
+    sor.setStddevMulThresh(0.0);
+    pcl::Indices roi;
+    sor.filter(roi);
+    return roi.size();
+  });
+}
+BENCHMARK(BM_PointcloudRoiChainPcl)->Unit(benchmark::kMillisecond)->Iterations(3);

@@ -10,6 +10,8 @@
 #include <octomap/octomap_types.h>
 
 #include <algorithm>
+#include <fstream>
+#include <unistd.h>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -21,6 +23,16 @@
 
 namespace fruit_shape_completion {
 namespace planner {
+
+namespace {
+// Resident memory of this process (Linux /proc/self/statm), 0 where unknown.
+double residentMiB() {
+  std::ifstream statm("/proc/self/statm");
+  double pages_total = 0, pages_resident = 0;
+  if (!(statm >> pages_total >> pages_resident)) return 0.0;
+  return pages_resident * static_cast<double>(sysconf(_SC_PAGESIZE)) / 1048576.0;
+}
+}  // namespace
 
 EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& renderer,
                          const SceneTruth& truth, ShapeEstimatorHost& host, const PlannerParams& p,
@@ -168,7 +180,9 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         // does). Its results reach the planner at the simulated time they would be ready, the
         // fit's start plus its measured duration, and one fit runs at a time: views during a fit
         // wait for the next one.
+        const auto insert0 = std::chrono::steady_clock::now();
         host.insertView(*given);
+        rec.insert_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - insert0).count();
         visibleNow();  // a finished fit's results first: the next fit must not overwrite them
         if (clockNow() >= fit_ready && t - last_update >= p.estimator_period) {
           const double start = clockNow();
@@ -244,6 +258,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         rec.wall_ms = std::chrono::duration<double, std::milli>(done - wall0).count();
         rec.compute_ms = compute_ms;
         rec.fit_ms = 1e3 * fit_wall;
+        rec.rss_mib = residentMiB();
         result.views.push_back(rec);
         ++view;
         if (on_view && !on_view(rec, tree, captured.frame, *given)) {

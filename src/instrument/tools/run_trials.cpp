@@ -269,13 +269,13 @@ int main(int argc, char** argv) {
   // Per-trial CSV: one row per view.
   for (int k = 0; k < trials; ++k) {
     std::ofstream csv(out + "/trial_" + std::to_string(k) + ".csv");
-    csv << "view,time_s,x,y,z,exploration,gain,attempts,to_shape_target,contour_targets,shape_targets,wall_ms,compute_ms";
+    csv << "view,time_s,x,y,z,exploration,gain,attempts,to_shape_target,contour_targets,shape_targets,wall_ms,compute_ms,insert_ms,fit_ms,rss_mib";
     for (const char* est : {"old", "se", "old_box"})
       for (const char* s : kSubsets) csv << ',' << est << '_' << s << "_fruits," << est << '_' << s << "_center_cm," << est << '_' << s << "_accuracy";
     csv << '\n';
     for (const auto& v : results[k].views) {
       csv << v.view << ',' << v.time << ',' << v.position.x() << ',' << v.position.y() << ',' << v.position.z() << ','
-          << v.exploration << ',' << v.gain << ',' << v.attempts << ',' << v.to_shape_target << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms;
+          << v.exploration << ',' << v.gain << ',' << v.attempts << ',' << v.to_shape_target << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms << ',' << v.insert_ms << ',' << v.fit_ms << ',' << v.rss_mib;
       for (const Evaluation* e : {&v.old_true, &v.se_true, &v.old_box})
         for (int s = 0; s < 3; ++s)
           csv << ',' << subset(*e, s).fruits << ',' << subset(*e, s).center_error_cm << ',' << subset(*e, s).accuracy;

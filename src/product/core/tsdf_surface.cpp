@@ -86,37 +86,46 @@ PointList IncrementalSurfaceExtractor::extract(const TsdfMap& map) {
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) changed[packCellKey(b + GridCell(dx, dy, dz))] = 1;
   });
-  std::unordered_map<std::uint64_t, CachedBlock> next;
-  next.reserve(map.blockCount());
+  // The cache is updated in place: a view changes a few blocks of a map that only grows (blocks
+  // go only when the map is cleared or loaded, which changes its epoch).
   PointList out;
+  out.reserve(last_total_);
   last_extracted_ = 0;
   last_blocks_ = SurfaceBlocks();
   last_blocks_.block_size = map.voxelsPerSide() * map.voxelSize();
   last_blocks_.all_changed = fresh;
+  std::size_t present = 0;
   map.forEachBlock([&](const TsdfBlock& block) {
     const GridCell b = blockCoordsOf(map, block);
     const std::uint64_t key = packCellKey(b);
-    CachedBlock entry;
-    const auto it = blocks_.find(key);
-    if (it != blocks_.end() && !changed.count(key)) {
-      entry = std::move(it->second);
-      blocks_.erase(it);
-    } else {
-      appendBlockSurface(map, block, params_, &entry.points);
+    const auto [it, inserted] = blocks_.try_emplace(key);
+    CachedBlock& entry = it->second;
+    ++present;
+    if (inserted || changed.count(key)) {
+      PointList points;
+      appendBlockSurface(map, block, params_, &points);
       ++last_extracted_;
-      const bool same = it != blocks_.end() && it->second.points == entry.points;
-      if (!same) last_blocks_.changed.push_back(b);
-      if (it != blocks_.end()) blocks_.erase(it);
+      if (points != entry.points) last_blocks_.changed.push_back(b);
+      entry.points = std::move(points);
     }
     entry.revision = block.revision;
     if (!entry.points.empty()) last_blocks_.ranges.push_back({b, out.size(), out.size() + entry.points.size()});
     out.insert(out.end(), entry.points.begin(), entry.points.end());
-    next.emplace(key, std::move(entry));
   });
-  // Blocks no longer in the map are dropped: their points went.
-  for (const auto& [key, entry] : blocks_)
-    if (!entry.points.empty()) last_blocks_.changed.push_back(cellOf(entry.points.front(), 1.0 / last_blocks_.block_size));
-  blocks_.swap(next);
+  if (blocks_.size() != present) {  // blocks went without a new epoch: their points went too
+    std::unordered_map<std::uint64_t, char> in_map;
+    map.forEachBlock([&](const TsdfBlock& block) { in_map[packCellKey(blockCoordsOf(map, block))] = 1; });
+    for (auto it = blocks_.begin(); it != blocks_.end();) {
+      if (in_map.count(it->first)) {
+        ++it;
+        continue;
+      }
+      if (!it->second.points.empty())
+        last_blocks_.changed.push_back(cellOf(it->second.points.front(), 1.0 / last_blocks_.block_size));
+      it = blocks_.erase(it);
+    }
+  }
+  last_total_ = out.size();
   return out;
 }
 

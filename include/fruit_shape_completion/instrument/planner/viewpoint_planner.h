@@ -107,6 +107,8 @@ struct ViewRecord {
   double wall_ms = 0.0;
   double compute_ms = 0.0;  // what the planner blocked on: wall_ms without rendering and the fit
   double fit_ms = 0.0;      // a fit started after this view (0: none); runs beside the planner
+  double insert_ms = 0.0;   // the estimators' insertView of this view (what the planner waits for)
+  double rss_mib = 0.0;     // the process's resident memory after this view
 };
 
 struct EpisodeResult {
