@@ -99,6 +99,7 @@ class FruitShapePipeline {
     std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells of this fruit's points
     std::size_t split_points = 0;  // a part of a split: its cluster's size when the split was decided
     std::vector<GridCell> blocks;  // the surface blocks its points lie in (local updates)
+    std::size_t suspect_checked_points = 0;  // its rough fit was tried split at this cluster size and stayed whole
   };
   using Parts = std::vector<std::pair<PointList, FruitEstimate>>;
 
@@ -141,6 +142,8 @@ class FruitShapePipeline {
                                               std::vector<Track>* untouched);
 
   PipelineParams params_;
+  bool skip_suspect_split_ = false;     // estimateWithSplit: no split of an accepted rough fit this time
+  std::size_t suspect_checked_ = 0;
   bool local_ready_ = false;     // the tracks know their blocks, of this block size
   double local_block_size_ = 0.0;
   std::vector<GridCell> pending_changed_;  // changed blocks of updates that were cancelled

@@ -17,6 +17,7 @@ namespace fruit_shape_completion {
 namespace {
 
 constexpr double kTrackCell = 0.01;  // cell size for matching clusters between updates
+constexpr double kRecheckGrowth = 1.25;  // a refused split is tried again once its cluster grew this much
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -294,9 +295,18 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
       continue;
     }
     if (normals.empty()) normals = normalsOf(pts);
+    // A fruit whose rough fit was tried split before and stayed whole is not tried again until
+    // its cluster has grown by a quarter: the same split would be refused again.
+    const int previous = bestOverlap(cells);
+    suspect_checked_ = previous >= 0 ? tracks_[static_cast<std::size_t>(previous)].suspect_checked_points : 0;
+    const bool skipped = static_cast<double>(pts.size()) <= kRecheckGrowth * static_cast<double>(suspect_checked_);
+    skip_suspect_split_ = skipped;
     Parts parts = estimateWithSplit(pts, normals, 0, &cells, whole ? &*whole : nullptr);
+    skip_suspect_split_ = false;
     for (auto& part : parts) {
       Track t;
+      if (parts.size() == 1 && part.second.accepted && part.second.rms > params_.split_rms)
+        t.suspect_checked_points = skipped ? suspect_checked_ : pts.size();
       t.estimate = std::move(part.second);
       t.cluster_signature = signature;
       t.cluster_points = pts.size();
