@@ -337,6 +337,15 @@ static PointList readXyz(const std::string& name) {
   return cloud;
 }
 
+// One update on `cloud`: how many fruits were accepted, and the fruit nearest `center`.
+static std::pair<int, const FruitEstimate*> acceptedAndNearest(FruitShapePipeline& pipeline, const PointList& cloud,
+                                                                const Eigen::Vector3d& center) {
+  const auto& fruits = pipeline.update(cloud);
+  int accepted = 0;
+  for (const auto& f : fruits) accepted += f.accepted;
+  return {accepted, nearest(fruits, center)};
+}
+
 TEST(FruitShapePipeline, AFruitOneShapeFitsOnlyRoughlyIsNotCutIntoOverlappingPieces) {
   // A fruit's TSDF surface from a scenario 2 episode (paper profile: blurred rims, a lobed
   // capsicum; true volume 250.6 cm^3 at the centre below). Its whole fit's RMS lies above a
@@ -351,11 +360,8 @@ TEST(FruitShapePipeline, AFruitOneShapeFitsOnlyRoughlyIsNotCutIntoOverlappingPie
   params.fit.max_rms = 0.004;
   params.split_rms = 0.004;
   FruitShapePipeline pipeline(params);
-  const auto& fruits = pipeline.update(cloud);
-  int accepted = 0;
-  for (const auto& f : fruits) accepted += f.accepted;
+  const auto [accepted, f] = acceptedAndNearest(pipeline, cloud, center);
   EXPECT_EQ(accepted, 1);
-  const FruitEstimate* f = nearest(fruits, center);
   ASSERT_TRUE(f->accepted) << f->reason;
   EXPECT_GT(f->rms, params.fit.max_rms);
   EXPECT_LT((f->center() - center).norm(), 0.01);
@@ -372,11 +378,8 @@ TEST(FruitShapePipeline, ATouchingPairStaysSplitWhenTheHalfSeenNeighboursFitBulg
   const Eigen::Vector3d center(0.0, 0.0, 0.5);
   const double true_volume = 167.2e-6;
   FruitShapePipeline pipeline;
-  const auto& fruits = pipeline.update(cloud);
-  int accepted = 0;
-  for (const auto& f : fruits) accepted += f.accepted;
+  const auto [accepted, f] = acceptedAndNearest(pipeline, cloud, center);
   EXPECT_EQ(accepted, 2);
-  const FruitEstimate* f = nearest(fruits, center);
   ASSERT_TRUE(f->accepted) << f->reason;
   EXPECT_LT((f->center() - center).norm(), 0.003);
   EXPECT_NEAR(f->volume, true_volume, 0.1 * true_volume);

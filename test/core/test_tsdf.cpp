@@ -33,19 +33,24 @@ PinholeCamera cameraAround(const Eigen::Vector3d& target, const Eigen::Vector3d&
 // Integrates views of `scene` from `n` directions around `target` (Fibonacci sphere, or a ring
 // in the horizontal plane when ring is true). Only points of shapes (not planes) are integrated,
 // as a fruit mask would cut them out.
+// One view of the scene's shapes (not its planes) from `cam` into the map.
+IntegrationReport integrateFruitView(TsdfMap& map, const TsdfIntegrator& integ, const AnalyticScene& scene,
+                                     const PinholeCamera& cam, double noise, unsigned seed) {
+  const DepthScan scan = renderDepth(scene, cam, noise, seed);
+  PointList fruit;
+  for (std::size_t k = 0; k < scan.points.size(); ++k)
+    if (scan.labels[k] < static_cast<int>(scene.shapes.size())) fruit.push_back(scan.points[k]);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = cam.rotation;
+  pose.translation() = cam.position;
+  return integ.integrate(map, fruit, pose);
+}
+
 void integrateViews(TsdfMap& map, const TsdfIntegrator& integ, const AnalyticScene& scene,
                     const Eigen::Vector3d& target, int n, double noise = 0.0, unsigned seed = 1) {
   const PointList dirs = fibonacciSphere(n);
   for (int i = 0; i < n; ++i) {
-    const PinholeCamera cam = cameraAround(target, dirs[i], 0.35);
-    const DepthScan scan = renderDepth(scene, cam, noise, seed + i);
-    PointList fruit;
-    for (std::size_t k = 0; k < scan.points.size(); ++k)
-      if (scan.labels[k] < static_cast<int>(scene.shapes.size())) fruit.push_back(scan.points[k]);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = cam.rotation;
-    pose.translation() = cam.position;
-    const IntegrationReport r = integ.integrate(map, fruit, pose);
+    const IntegrationReport r = integrateFruitView(map, integ, scene, cameraAround(target, dirs[i], 0.35), noise, seed + i);
     ASSERT_TRUE(r.ok()) << r.error;
   }
 }
@@ -626,14 +631,7 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
     for (const double side : {-1.0, 1.0}) {
       const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(x, side * 0.35, 0.55),
                                                          Eigen::Vector3d(x + 0.05, 0.0, 0.5), 160, 120);
-      const DepthScan scan = renderDepth(scene, cam, 0.001, 100 + views);
-      PointList fruit;
-      for (std::size_t k = 0; k < scan.points.size(); ++k)
-        if (scan.labels[k] < static_cast<int>(scene.shapes.size())) fruit.push_back(scan.points[k]);
-      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-      pose.linear() = cam.rotation;
-      pose.translation() = cam.position;
-      ASSERT_TRUE(integ.integrate(map, fruit, pose).ok());
+      ASSERT_TRUE(integrateFruitView(map, integ, scene, cam, 0.001, 100 + views).ok());
       const PointList surface = extractor.extract(map);
       const auto& a = local.update(surface, nullptr, &extractor.lastBlocks());
       const auto& b = whole.update(surface);
