@@ -140,7 +140,7 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
   // them better) and keep the split if some part fits.
   // A fit that is accepted but explains its points only roughly may be two small touching
   // fruits fitted as one: its split is tried too, and kept only if it explains them far better.
-  const bool suspect = whole.accepted && whole.rms > params_.split_rms && !(depth == 0 && skip_suspect_split_);
+  const bool suspect = whole.accepted && whole.rms > params_.split_rms && depth == 0 && !skip_suspect_split_;
   if ((whole.accepted && !suspect) || !whole.converged || depth >= params_.max_split_depth ||
       static_cast<int>(points.size()) < 2 * min_part) {
     out.emplace_back(points, whole);
