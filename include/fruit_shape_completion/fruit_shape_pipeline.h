@@ -99,9 +99,12 @@ class FruitShapePipeline {
     std::unordered_set<std::uint64_t> cells;  // occupied 1 cm cells of this fruit's points
     std::size_t split_points = 0;  // a part of a split: its cluster's size when the split was decided
     std::vector<GridCell> blocks;  // the surface blocks its points lie in (local updates)
-    std::size_t suspect_checked_points = 0;  // its rough fit was tried split at this cluster size and stayed whole
+    std::size_t rough_checked_points = 0;  // its rough fit was tried split at this cluster size and stayed whole
   };
   using Parts = std::vector<std::pair<PointList, FruitEstimate>>;
+  // A split decision (made, or refused for a rough fit) is revisited once its cluster has grown
+  // by this share: more of the fruit seen may tell otherwise.
+  static constexpr double kRecheckGrowth = 0.25;
 
   // The points' surface normals (estimateNormals, oriented toward their centroid).
   std::vector<Eigen::Vector3d> normalsOf(const PointList& points);
@@ -111,9 +114,11 @@ class FruitShapePipeline {
   // The cluster as one fruit, or, if no superellipsoid fits it, split into parts that fit.
   // `cells`: the points' occupied 1 cm cells if the caller has them.
   // `fitted_whole`: the cluster's whole fit if the caller has it.
+  // `split_rough`: an accepted fit above split_rms is tried split too (small touching fruits
+  // fitted as one); the parts of a split are not (one cut separates such a pair).
   Parts estimateWithSplit(const PointList& points, const std::vector<Eigen::Vector3d>& normals, int depth,
                           const std::unordered_set<std::uint64_t>* cells = nullptr,
-                          const FruitEstimate* fitted_whole = nullptr);
+                          const FruitEstimate* fitted_whole = nullptr, bool split_rough = false);
   // A changed cluster that covers exactly the parts of one earlier split, all accepted: its
   // points go to the part whose fit explains them better, and each part keeps its fit (see
   // refit_tolerance) or is refitted from it. Once the cluster has grown by a quarter since the
@@ -142,8 +147,6 @@ class FruitShapePipeline {
                                               std::vector<Track>* untouched);
 
   PipelineParams params_;
-  bool skip_suspect_split_ = false;     // estimateWithSplit: no split of an accepted rough fit this time
-  std::size_t suspect_checked_ = 0;
   bool local_ready_ = false;     // the tracks know their blocks, of this block size
   double local_block_size_ = 0.0;
   std::vector<GridCell> pending_changed_;  // changed blocks of updates that were cancelled

@@ -17,7 +17,6 @@ namespace fruit_shape_completion {
 namespace {
 
 constexpr double kTrackCell = 0.01;  // cell size for matching clusters between updates
-constexpr double kRecheckGrowth = 1.25;  // a refused split is tried again once its cluster grew this much
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -203,7 +202,6 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e) {
   const auto start = std::chrono::steady_clock::now();
   e->missing_surface = predictMissingSurface(e->shape, e->points, params_.missing);
   // Computed once per fit, not at every hand-over of the targets.
-  e->missing_normals.clear();
   e->missing_normals.reserve(e->missing_surface.size());
   for (const auto& s : e->missing_surface) e->missing_normals.push_back(outwardNormal(e->shape, s));
   const Superellipsoid& se = e->shape;
@@ -296,17 +294,15 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
     }
     if (normals.empty()) normals = normalsOf(pts);
     // A fruit whose rough fit was tried split before and stayed whole is not tried again until
-    // its cluster has grown by a quarter: the same split would be refused again.
+    // its cluster has grown: the same split would be refused again.
     const int previous = bestOverlap(cells);
-    suspect_checked_ = previous >= 0 ? tracks_[static_cast<std::size_t>(previous)].suspect_checked_points : 0;
-    const bool skipped = static_cast<double>(pts.size()) <= kRecheckGrowth * static_cast<double>(suspect_checked_);
-    skip_suspect_split_ = skipped;
-    Parts parts = estimateWithSplit(pts, normals, 0, &cells, whole ? &*whole : nullptr);
-    skip_suspect_split_ = false;
+    const std::size_t checked = previous >= 0 ? tracks_[static_cast<std::size_t>(previous)].rough_checked_points : 0;
+    const bool split_rough = static_cast<double>(pts.size()) > (1.0 + kRecheckGrowth) * static_cast<double>(checked);
+    Parts parts = estimateWithSplit(pts, normals, 0, &cells, whole ? &*whole : nullptr, split_rough);
     for (auto& part : parts) {
       Track t;
       if (parts.size() == 1 && part.second.accepted && part.second.rms > params_.split_rms)
-        t.suspect_checked_points = skipped ? suspect_checked_ : pts.size();
+        t.rough_checked_points = split_rough ? pts.size() : checked;
       t.estimate = std::move(part.second);
       t.cluster_signature = signature;
       t.cluster_points = pts.size();

@@ -22,11 +22,10 @@ bool oneFruit(const Superellipsoid& a, const Superellipsoid& b) {
   return ra + rb - d.norm() > kOverlapShare * std::min(ra, rb);
 }
 
-template <typename Fits, typename ShapeOf>
-bool anyTwoOneFruit(const Fits& fits, ShapeOf shapeOf) {
+bool anyTwoOneFruit(const std::vector<const Superellipsoid*>& fits) {
   for (std::size_t i = 0; i < fits.size(); ++i)
     for (std::size_t j = i + 1; j < fits.size(); ++j)
-      if (oneFruit(shapeOf(fits[i]), shapeOf(fits[j]))) return true;
+      if (oneFruit(*fits[i], *fits[j])) return true;
   return false;
 }
 
@@ -62,11 +61,10 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
       return {};
   }
   std::vector<Eigen::Vector3d>& normals = *normals_out;  // of the whole cluster, once a fit needs them
-  // Once the cluster has grown this much since the split was decided, the whole cluster is
-  // fitted again first, so that a fruit split in error merges when more of it is seen.
-  constexpr double kSplitRecheckGrowth = 0.25;
+  // Once the cluster has grown since the split was decided, the whole cluster is fitted again
+  // first, so that a fruit split in error merges when more of it is seen.
   const bool recheck =
-      static_cast<double>(points.size()) > (1.0 + kSplitRecheckGrowth) * static_cast<double>(first.split_points);
+      static_cast<double>(points.size()) > (1.0 + kRecheckGrowth) * static_cast<double>(first.split_points);
   if (recheck) {
     normals = normalsOf(points);
     *whole_out = estimateCluster(points, normals, -1, &tracks_[static_cast<std::size_t>(bestOverlap(cells))]);
@@ -115,7 +113,9 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     }
     out.push_back(std::move(t));
   }
-  if (anyTwoOneFruit(out, [](const Track& t) -> const Superellipsoid& { return t.estimate.shape; })) return {};
+  std::vector<const Superellipsoid*> fits;
+  for (const Track& t : out) fits.push_back(&t.estimate.shape);
+  if (anyTwoOneFruit(fits)) return {};
   stats_.kept += kept;
   ++stats_.splits;
   return out;
@@ -124,7 +124,7 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
 FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList& points,
                                                                 const std::vector<Eigen::Vector3d>& normals, int depth,
                                                                 const std::unordered_set<std::uint64_t>* cells,
-                                                                const FruitEstimate* fitted_whole) {
+                                                                const FruitEstimate* fitted_whole, bool split_rough) {
   FruitEstimate whole;
   if (fitted_whole != nullptr) {
     whole = *fitted_whole;
@@ -140,7 +140,7 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
   // them better) and keep the split if some part fits.
   // A fit that is accepted but explains its points only roughly may be two small touching
   // fruits fitted as one: its split is tried too, and kept only if it explains them far better.
-  const bool suspect = whole.accepted && whole.rms > params_.split_rms && depth == 0 && !skip_suspect_split_;
+  const bool suspect = split_rough && whole.accepted && whole.rms > params_.split_rms;
   if ((whole.accepted && !suspect) || !whole.converged || depth >= params_.max_split_depth ||
       static_cast<int>(points.size()) < 2 * min_part) {
     out.emplace_back(points, whole);
@@ -227,7 +227,7 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
   // lobes): it stays whole and is accepted. Unless the parts explain the points several times
   // better: a half-seen neighbour's fit may bulge into its touching fruit.
   if (whole.rms <= params_.one_fruit_max_rms && split_rms > kOverlapGain * whole.rms &&
-      anyTwoOneFruit(fits, [](const Superellipsoid* s) -> const Superellipsoid& { return *s; })) {
+      anyTwoOneFruit(fits)) {
     whole.accepted = true;
     whole.reason.clear();
     out.emplace_back(points, whole);
