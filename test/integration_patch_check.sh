@@ -19,5 +19,6 @@ if find "$COPY" -name '*.rej' -o -name '*.orig' | grep -q .; then
   exit 1
 fi
 grep -q "shapeEstimators->insertView" "$COPY/src/viewpoint_planner.cpp"
-grep -q "shapeEstimators->extraTargets" "$COPY/src/viewpoint_samplers.cpp"
+grep -q "shapeEstimators->targetRound()" "$COPY/src/viewpoint_samplers.cpp"
+grep -qF "shapeTargets.viewGain(origin, dirVec, *planner->planningTree)" "$COPY/src/viewpoint_samplers.cpp"
 echo "integration patch applies cleanly to $UPSTREAM"

@@ -19,6 +19,12 @@ struct ShapeTargetParams {
   // Hand over each target's outward normal, so that the planner views it from the side it
   // faces; false: zero directions (any side).
   bool view_side = true;
+  // What a view gains in the planner's utility per fruit surface it would newly see
+  // (shape_view_gain.h): seeing a whole fruit's worth of predicted surface adds view_gain. 0:
+  // nothing, the planner's own utility alone.
+  double view_gain = 1.0;
+  double view_fov_deg = 60.0;    // the cone a view sees (full angle): the camera's narrower FOV
+  double view_max_range = 1.0;   // [m] predicted surface farther than this is not counted
   void validate() const;    // throws std::invalid_argument naming the first bad value
 };
 
@@ -26,6 +32,10 @@ struct ShapeTargetParams {
 // (unit vectors, one per point), or no directions at all (any side).
 struct ShapeTargets {
   PointList points, directions;
+  // Per target, what seeing it adds to a view's utility (view_gain x the share of its fruit's
+  // surface it stands for); empty: no view gain. The cone a view sees them in.
+  std::vector<double> gains;
+  double view_cos_half_angle = 1.0, view_max_range = 0.0;
 };
 
 // The fitted surface's outward unit normal at its point s.

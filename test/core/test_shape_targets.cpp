@@ -108,6 +108,12 @@ TEST(ShapeTargets, BadParametersAreRefusedByName) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("target_offset"), std::string::npos);
   }
+  for (auto bad : {+[](ShapeTargetParams& q) { q.view_gain = -1.0; }, +[](ShapeTargetParams& q) { q.view_fov_deg = 180.0; },
+                   +[](ShapeTargetParams& q) { q.view_max_range = 0.0; }}) {
+    p = ShapeTargetParams();
+    bad(p);
+    EXPECT_THROW(p.validate(), std::invalid_argument);
+  }
 }
 
 TEST(VolumeInterval, NarrowsAsMoreOfTheFruitIsSeenAndWidensWithTheResidual) {

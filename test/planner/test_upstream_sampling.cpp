@@ -35,6 +35,13 @@ void setFree(RoiOcTree* t, int x, int y, int z) {
 }
 void setFreeOnce(RoiOcTree* t, int x, int y, int z) { t->updateNode(cell(x, y, z), false); }
 
+ShapeTargets targetsAt(const PointList& points, const PointList& directions) {
+  ShapeTargets t;
+  t.points = points;
+  t.directions = directions;
+  return t;
+}
+
 sim::Workspace everywhere() {
   sim::Workspace w;
   w.box_min = Eigen::Vector3d::Constant(-5);
@@ -196,7 +203,7 @@ TEST(UpstreamSampling, RoiViewsAreUsedOnlyWhenTheBestScoresAboveTheThreshold) {
   // Extra targets join the ROI pool.
   std::mt19937 rng3(3);
   const SampledCandidates extra =
-      sampleUpstream(tree, everywhere(), ShapeTargets{{Eigen::Vector3d(-0.05, 0, 0)}, {}}, near_camera, p, rng3);
+      sampleUpstream(tree, everywhere(), targetsAt({Eigen::Vector3d(-0.05, 0, 0)}, {}), near_camera, p, rng3);
   EXPECT_EQ(extra.roi_pool, s.roi_pool + 1);
 }
 
@@ -208,7 +215,7 @@ TEST(UpstreamSampling, AShapeTargetWithADirectionIsViewedFromTheSideItFaces) {
   UpstreamSamplingParams p;
   p.expl_samples = 0;
   std::mt19937 rng(5);
-  const SampledCandidates s = sampleUpstream(tree, everywhere(), ShapeTargets{{target}, {facing}}, target, p, rng);
+  const SampledCandidates s = sampleUpstream(tree, everywhere(), targetsAt({target}, {facing}), target, p, rng);
   ASSERT_EQ(s.roi.size(), 100u);
   for (const auto& v : s.roi) {
     EXPECT_TRUE(v.shape_target);
@@ -218,9 +225,43 @@ TEST(UpstreamSampling, AShapeTargetWithADirectionIsViewedFromTheSideItFaces) {
   // Without a direction, both sides.
   std::mt19937 rng2(5);
   const SampledCandidates any =
-      sampleUpstream(tree, everywhere(), ShapeTargets{{target}, {Eigen::Vector3d::Zero()}}, target, p, rng2);
+      sampleUpstream(tree, everywhere(), targetsAt({target}, {Eigen::Vector3d::Zero()}), target, p, rng2);
   int behind = 0;
   for (const auto& v : any.roi) behind += (v.origin - target).dot(facing) < 0.0 ? 1 : 0;
   EXPECT_GT(behind, 25);
   EXPECT_LT(behind, 75);
+}
+
+TEST(UpstreamSampling, PredictedSurfaceAViewSeesAddsItsGainToTheUtilityUnlessTheMapHidesIt) {
+  // The integration patch adds shapeViewGain to each ROI candidate's utility: every view of the
+  // lone target faces it from 0.3-0.5 m, so each gains the target's 0.4, until a wall of
+  // occupied cells stands around it.
+  RoiOcTree tree(kRes);
+  setFree(&tree, 0, 0, 0);
+  const Eigen::Vector3d target(0.305, 0.205, 0.505), facing(0, 1, 0);
+  ShapeTargets t = targetsAt({target}, {facing});
+  t.gains = {0.4};
+  t.view_cos_half_angle = std::cos(0.5);
+  t.view_max_range = 1.0;
+  UpstreamSamplingParams p;
+  p.expl_samples = 0;
+  std::mt19937 rng(5);
+  const SampledCandidates s = sampleUpstream(tree, everywhere(), t, target, p, rng);
+  ASSERT_EQ(s.roi.size(), 100u);
+  for (const auto& v : s.roi) {
+    EXPECT_DOUBLE_EQ(v.shape_gain, 0.4);
+    EXPECT_NEAR(v.utility, v.gain - 0.2 * (v.origin - target).norm() + 0.4, 1e-12);
+  }
+  // Occupied cells 2-3 cm around the target on the side it faces: no view sees it.
+  for (int x = 25; x <= 35; ++x)
+    for (int z = 45; z <= 55; ++z)
+      for (int y = 22; y <= 23; ++y) setOccupied(&tree, x, y, z);
+  for (int x = 25; x <= 35; ++x)
+    for (int y = 19; y <= 23; ++y) setOccupied(&tree, x, y, 55), setOccupied(&tree, x, y, 45);
+  for (int z = 45; z <= 55; ++z)
+    for (int y = 19; y <= 23; ++y) setOccupied(&tree, 25, y, z), setOccupied(&tree, 35, y, z);
+  std::mt19937 rng2(5);
+  const SampledCandidates hidden = sampleUpstream(tree, everywhere(), t, target, p, rng2);
+  ASSERT_FALSE(hidden.roi.empty());
+  for (const auto& v : hidden.roi) EXPECT_EQ(v.shape_gain, 0.0);
 }

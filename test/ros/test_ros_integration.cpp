@@ -16,6 +16,7 @@
 #include <fruit_shape_completion/instrument/sim/rgbd_renderer.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
+#include <octomap/OcTree.h>
 
 #include "wait_for.h"
 #include <ros/ros.h>
@@ -195,6 +196,17 @@ TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUns
     behind += (q - s.truth.t).y() > 0;  // the cameras are all at y < fruit
   }
   EXPECT_GT(behind, static_cast<int>(0.8 * targets.size()));
+  // What the patched sampler adds to a view's utility (target_view_gain 1 by default): the
+  // unseen side seen from behind gains a good share of a fruit; from the cameras' side, nothing.
+  const ros_io::ShapeTargetRound round = estimators.targetRound();
+  ASSERT_EQ(round.points.size(), targets.size());
+  const octomap::OcTree nothing_in_the_way(0.01);
+  auto at = [&](double dy) {
+    return octomap::point3d(static_cast<float>(s.truth.t.x()), static_cast<float>(s.truth.t.y() + dy),
+                            static_cast<float>(s.truth.t.z()));
+  };
+  EXPECT_GT(round.viewGain(at(0.4), octomap::point3d(0, -1, 0), nothing_in_the_way), 0.2);
+  EXPECT_EQ(round.viewGain(at(-0.4), octomap::point3d(0, 1, 0), nothing_in_the_way), 0.0);
   // Bad input is skipped and counted, not fatal, and the fruit stays.
   auto bad = roiCloud(s.scene, 1, s.cameras[0]);
   bad.roi_indices.push_back(-5);

@@ -54,7 +54,11 @@ class ShapeEstimator {
   virtual PointList extraTargets() const = 0;
   // The same targets, with the direction to view each from where the estimator knows it; the
   // default gives none (any side).
-  virtual ShapeTargets viewTargets() const { return {extraTargets(), {}}; }
+  virtual ShapeTargets viewTargets() const {
+    ShapeTargets t;
+    t.points = extraTargets();
+    return t;
+  }
   virtual void reset() = 0;
   // Asks a running update() to return soon without publishing its results: the estimator is
   // going away. May be called from any thread; the default does nothing.

@@ -4,6 +4,7 @@
 // indices and transform) and returning their extra targets as octomap points, so that the
 // planner's patch (integration/roi_viewpoint_planner.patch) stays a few lines.
 #include <fruit_shape_completion/ros/shape_estimator_loader.h>
+#include <fruit_shape_completion/shape_view_gain.h>
 
 #include <geometry_msgs/Transform.h>
 #include <octomap/octomap_types.h>
@@ -30,6 +31,28 @@ bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int
                const geometry_msgs::Transform& transform, const std::string& map_frame, RoiView* view,
                std::string* error);
 
+// One planning round's shape targets in the planner's types (the patch adds `points` to the ROI
+// contour sampler's pool; `directions` as extraTargets gives them) and what a sampled view gains
+// from the predicted surface it would see.
+class ShapeTargetRound {
+ public:
+  ShapeTargetRound() = default;
+  explicit ShapeTargetRound(ShapeTargets targets);
+  std::vector<octomap::point3d> points, directions;
+  // To add to the view's utility: the predicted surface a camera at `origin` looking along `dir`
+  // sees, lines of sight checked in `tree` (the planner's occupancy tree, its lock held). 0
+  // unless target_view_gain > 0.
+  template <typename OccupancyTree>
+  double viewGain(const octomap::point3d& origin, const octomap::point3d& dir, const OccupancyTree& tree) const {
+    if (targets_.gains.empty()) return 0.0;
+    return shapeViewGain(targets_, Eigen::Vector3d(origin.x(), origin.y(), origin.z()),
+                         Eigen::Vector3d(dir.x(), dir.y(), dir.z()), occupiedCellsBlock(tree));
+  }
+
+ private:
+  ShapeTargets targets_;
+};
+
 class RoiPlannerShapeEstimators {
  public:
   // Loads the estimators listed in `shape_estimators` of planner_nh, each initialised in
@@ -49,6 +72,8 @@ class RoiPlannerShapeEstimators {
   // The same, with one direction per target to view it from (the predicted surface's outward
   // normal; zero: any side) in *directions.
   std::vector<octomap::point3d> extraTargets(std::vector<octomap::point3d>* directions) const;
+  // The same with the view gain, for one round of sampling.
+  ShapeTargetRound targetRound() const;
   // Until no fit is pending or running (false after `seconds`): for tools and tests, which
   // want the fit of the view they just gave; a planner does not wait.
   bool waitForFits(double seconds) const { return loader_.host().waitForUpdates(seconds); }

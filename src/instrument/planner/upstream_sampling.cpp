@@ -1,4 +1,5 @@
 #include <fruit_shape_completion/instrument/planner/upstream_sampling.h>
+#include <fruit_shape_completion/shape_view_gain.h>
 
 #include <Eigen/Geometry>
 
@@ -199,6 +200,7 @@ SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& wo
     return v;
   };
 
+  const RayBlocked blocked = occupiedCellsBlock(tree);
   // RoiContourSampler (with the integration patch's extra targets in its pool).
   PointList pool = roiContourPool(tree, roi_keys);
   const std::size_t contour_count = pool.size();
@@ -218,7 +220,11 @@ SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& wo
         v.origin = 2.0 * v.target - v.origin;
       v.direction = (v.target - v.origin).normalized();
       if (!workspace.contains(v.origin)) continue;
-      out.roi.push_back(score(v));
+      v = score(v);
+      // The integration patch: the predicted surface the view would see (0 without view gains).
+      v.shape_gain = shapeViewGain(extra, v.origin, v.direction, blocked);
+      v.utility += v.shape_gain;
+      out.roi.push_back(v);
     }
   }
 

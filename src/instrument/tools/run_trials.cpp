@@ -165,6 +165,14 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 100000))->capture_default_str();
   app.add_option("--target-offset", estimator.targets.offset, "[m] targets this far outside the predicted surface")
       ->check(CLI::Range(0.0, 0.2))->capture_default_str();
+  app.add_option("--target-view-gain", estimator.targets.view_gain,
+                 "added to a sampled view's utility per fruit surface's worth of predicted surface it sees")
+      ->check(CLI::Range(0.0, 100.0))->capture_default_str();
+  app.add_option("--target-view-fov", estimator.targets.view_fov_deg, "[deg] the cone a view sees predicted surface in")
+      ->check(CLI::Range(1.0, 179.0))->capture_default_str();
+  app.add_option("--target-view-max-range", estimator.targets.view_max_range,
+                 "[m] predicted surface farther from a view is not counted")
+      ->check(CLI::Range(0.05, 10.0))->capture_default_str();
   app.add_flag_callback("--any-side", [&] { estimator.targets.view_side = false; },
                         "hand over no viewing directions: the planner views shape targets from any side");
   app.add_flag_callback("--no-noise", [&] { base.depth_noise = false; }, "noise-free depth");
@@ -339,7 +347,9 @@ int main(int argc, char** argv) {
       {"trials", trials}, {"duration_s", base.duration}, {"shape_targets", estimator.shape_targets},
       {"targets", {{"settled_coverage", estimator.targets.settled_coverage}, {"per_fruit", estimator.targets.per_fruit},
                    {"offset_m", estimator.targets.offset},
-                   {"view_side", estimator.targets.view_side}}},
+                   {"view_side", estimator.targets.view_side},
+                   {"view_gain", estimator.targets.view_gain}, {"view_fov_deg", estimator.targets.view_fov_deg},
+                   {"view_max_range_m", estimator.targets.view_max_range}}},
       {"planner", "upstream"},
       {"input", input_name},
       {"input_stage", {{"depth_edges", estimator.input.drop_depth_edges}, {"outliers", estimator.input.remove_outliers},

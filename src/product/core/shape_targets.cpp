@@ -13,6 +13,12 @@ void ShapeTargetParams::validate() const {
   if (per_fruit < 0) throw std::invalid_argument("targets_per_fruit must be >= 0, not " + std::to_string(per_fruit));
   if (!(std::isfinite(offset) && offset >= 0.0 && offset <= 0.2))
     throw std::invalid_argument("target_offset must be in [0, 0.2] m, not " + std::to_string(offset));
+  if (!(std::isfinite(view_gain) && view_gain >= 0.0 && view_gain <= 100.0))
+    throw std::invalid_argument("target_view_gain must be in [0, 100], not " + std::to_string(view_gain));
+  if (!(view_fov_deg > 0.0 && view_fov_deg < 180.0))
+    throw std::invalid_argument("target_view_fov_deg must be in (0, 180), not " + std::to_string(view_fov_deg));
+  if (!(std::isfinite(view_max_range) && view_max_range > 0.0))
+    throw std::invalid_argument("target_view_max_range must be > 0 m, not " + std::to_string(view_max_range));
 }
 
 double seenCoverage(const FruitEstimate& fruit, int surface_samples) {
@@ -38,6 +44,10 @@ Eigen::Vector3d outwardNormal(const Superellipsoid& shape, const Point& s) {
 ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int surface_samples,
                                 const ShapeTargetParams& params) {
   ShapeTargets targets;
+  if (params.view_gain > 0.0) {
+    targets.view_cos_half_angle = std::cos(0.5 * params.view_fov_deg * M_PI / 180.0);
+    targets.view_max_range = params.view_max_range;
+  }
   for (const auto& f : fruits) {
     if (!f.accepted || f.missing_surface.empty()) continue;
     if (params.settled_coverage < 1.0 && seenCoverage(f, surface_samples) >= params.settled_coverage) continue;
@@ -50,6 +60,9 @@ ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int su
       const Eigen::Vector3d normal = f.missing_normals.size() == n ? f.missing_normals[k] : outwardNormal(f.shape, s);
       targets.points.push_back(s + params.offset * normal);
       targets.directions.push_back(params.view_side ? normal : Eigen::Vector3d::Zero());
+      // Each kept target stands for n / keep of the fruit's samples.
+      if (params.view_gain > 0.0 && surface_samples > 0)
+        targets.gains.push_back(params.view_gain * static_cast<double>(n) / keep / surface_samples);
     }
   }
   return targets;

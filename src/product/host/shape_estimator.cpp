@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <iostream>
 #include <new>
 #include <stdexcept>
@@ -225,13 +226,20 @@ ShapeTargets ShapeEstimatorHost::viewTargets() const {
     ShapeTargets t;
     if (!guarded(i, [&](ShapeEstimator& e) { t = e.viewTargets(); })) continue;
     const bool directed = t.directions.size() == t.points.size();
+    const bool gained = t.gains.size() == t.points.size() && t.view_max_range > 0.0;
+    if (gained && all.view_max_range <= 0.0) {  // the first estimator's cone: one camera
+      all.view_cos_half_angle = t.view_cos_half_angle;
+      all.view_max_range = t.view_max_range;
+    }
     for (std::size_t k = 0; k < t.points.size(); ++k) {
       if (!t.points[k].allFinite()) continue;
       all.points.push_back(t.points[k]);
       const bool ok = directed && t.directions[k].allFinite();
       all.directions.push_back(ok ? t.directions[k] : Point::Zero());
+      all.gains.push_back(gained && std::isfinite(t.gains[k]) ? t.gains[k] : 0.0);
     }
   }
+  if (all.view_max_range <= 0.0) all.gains.clear();
   return all;
 }
 

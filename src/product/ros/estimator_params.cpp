@@ -127,6 +127,9 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("targets_per_fruit", p.targets.per_fruit);
   read("target_offset", p.targets.offset);
   read("target_view_side", p.targets.view_side);
+  read("target_view_gain", p.targets.view_gain);
+  read("target_view_fov_deg", p.targets.view_fov_deg);
+  read("target_view_max_range", p.targets.view_max_range);
   rejectUnknownKeys(nh, known);
   try {
     p.input.validate();

@@ -58,25 +58,30 @@ std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets() const {
 }
 
 std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets(std::vector<octomap::point3d>* directions) const {
-  std::vector<octomap::point3d> out;
-  directions->clear();
+  ShapeTargetRound round = targetRound();
+  *directions = std::move(round.directions);
+  return std::move(round.points);
+}
+
+ShapeTargetRound::ShapeTargetRound(ShapeTargets targets) : targets_(std::move(targets)) {
   auto toOctomap = [](const Point& p) {
     return octomap::point3d(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
   };
+  points.reserve(targets_.points.size());
+  directions.reserve(targets_.points.size());
+  for (std::size_t i = 0; i < targets_.points.size(); ++i) {
+    points.push_back(toOctomap(targets_.points[i]));
+    directions.push_back(toOctomap(targets_.directions[i]));
+  }
+}
+
+ShapeTargetRound RoiPlannerShapeEstimators::targetRound() const {
   try {
-    const ShapeTargets targets = loader_.host().viewTargets();
-    out.reserve(targets.points.size());
-    directions->reserve(targets.points.size());
-    for (std::size_t i = 0; i < targets.points.size(); ++i) {
-      out.push_back(toOctomap(targets.points[i]));
-      directions->push_back(toOctomap(targets.directions[i]));
-    }
+    return ShapeTargetRound(loader_.host().viewTargets());
   } catch (const std::exception& e) {
     ROS_ERROR("shape estimators: no extra targets this time: %s", e.what());
-    out.clear();
-    directions->clear();
+    return ShapeTargetRound();
   }
-  return out;
 }
 
 void RoiPlannerShapeEstimators::reset() {

@@ -44,6 +44,7 @@ class InflatedRois {
 struct SampledView {
   Eigen::Vector3d origin, target, direction;
   double gain = 0.0, distance = 0.0, utility = 0.0;
+  double shape_gain = 0.0;    // the predicted surface it would see (shape_view_gain.h), in utility
   bool shape_target = false;  // its target came from the estimators' extra targets
 };
 
@@ -72,8 +73,8 @@ struct SampledCandidates {
 };
 
 // RoiContourSampler over the pool plus `extra` (the integration patch's shape targets; a
-// sphere point on the side away from a target's direction is mirrored to the side it faces, as
-// the patch does) and ContourSampler, both scored by ROI_VICINITY_UTILITY from `camera`;
+// sphere point on the side away from a target's direction is mirrored to the side it faces, and
+// the predicted surface a view sees adds to its utility, as the patch does) and ContourSampler, both scored by ROI_VICINITY_UTILITY from `camera`;
 // samples whose origin is outside the workspace are dropped, as upstream drops those outside
 // its workspace tree.
 SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& workspace,
