@@ -392,6 +392,14 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
     while (!done) {
       for (const auto& f : est.fruits()) EXPECT_TRUE(f.center().allFinite());
       est.extraTargets();
+      // A shared snapshot read while the next update runs is never written to.
+      const auto shared = est.sharedFruits();
+      const auto targets = est.sharedViewTargets();
+      const std::size_t n = shared->empty() ? 0 : shared->front().points.size();
+      const std::size_t t = targets->points.size();
+      std::this_thread::yield();
+      EXPECT_EQ(shared->empty() ? 0 : shared->front().points.size(), n);
+      EXPECT_EQ(targets->points.size(), t);
       ++queries;
     }
   });
@@ -401,6 +409,38 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   EXPECT_GT(queries.load(), 0);
   ASSERT_EQ(est.fruits().size(), 1u);
   EXPECT_NEAR(est.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
+}
+
+TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAfterwards) {
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  auto& est = dynamic_cast<SuperellipsoidEstimator&>(host.estimator(0));
+  const Superellipsoid truth = mapSixPartialViews(est);
+  const auto fruits = host.sharedFruits(0);
+  const auto targets = host.sharedViewTargets();
+  ASSERT_EQ(fruits->size(), 1u);
+  ASSERT_FALSE(targets->points.empty());
+  EXPECT_EQ(targets->gains.size(), targets->points.size());
+  // Asked again without an update: the same snapshots, nothing copied or checked again.
+  EXPECT_EQ(host.sharedFruits(0), fruits);
+  EXPECT_EQ(host.sharedViewTargets(), targets);
+  EXPECT_EQ(host.viewTargets().points, targets->points);
+  const FruitEstimate before = (*fruits)[0];
+  const std::size_t target_count = targets->points.size();
+  // One more view from a new side: new snapshots; the ones handed out stay as they were.
+  const PartialView more(truth, Eigen::Vector3d(0, 1, 0), 7);
+  est.insertView(more.data(7));
+  est.update();
+  EXPECT_NE(host.sharedFruits(0), fruits);
+  EXPECT_NE(host.sharedViewTargets(), targets);
+  EXPECT_EQ((*fruits)[0].volume, before.volume);
+  EXPECT_EQ((*fruits)[0].points.size(), before.points.size());
+  EXPECT_EQ(targets->points.size(), target_count);
+  // Targets switched off: an empty snapshot at once.
+  EstimatorLiveParams live = est.liveParams();
+  live.shape_targets = false;
+  est.setLiveParams(live);
+  EXPECT_TRUE(host.sharedViewTargets()->points.empty());
 }
 
 // Live settings (dynamic_reconfigure's thread), fruit exports (a service thread), target and

@@ -59,6 +59,14 @@ class ShapeEstimator {
     t.points = extraTargets();
     return t;
   }
+  // The same results shared, never changed once handed out: what a planner asks for every round
+  // without copying every fruit's points. The defaults copy once per call.
+  virtual std::shared_ptr<const std::vector<FruitEstimate>> sharedFruits() const {
+    return std::make_shared<const std::vector<FruitEstimate>>(fruits());
+  }
+  virtual std::shared_ptr<const ShapeTargets> sharedViewTargets() const {
+    return std::make_shared<const ShapeTargets>(viewTargets());
+  }
   virtual void reset() = 0;
   // Asks a running update() to return soon without publishing its results: the estimator is
   // going away. May be called from any thread; the default does nothing.
@@ -110,6 +118,11 @@ class ShapeEstimatorHost {
   PointList extraTargets() const;
   // All estimators' targets with their directions (zero where an estimator gives none).
   ShapeTargets viewTargets() const;
+  // The same, shared: one estimator's results are passed on as they are once checked (per
+  // update, not per call); several estimators' are joined.
+  std::shared_ptr<const ShapeTargets> sharedViewTargets() const;
+  // Fruits of estimator i, shared (empty if it throws).
+  std::shared_ptr<const std::vector<FruitEstimate>> sharedFruits(std::size_t i) const;
   // Fruits of estimator i; empty (and the estimator disabled) if it throws.
   std::vector<FruitEstimate> fruits(std::size_t i) const;
   std::size_t size() const;
@@ -146,6 +159,8 @@ class ShapeEstimatorHost {
   mutable std::vector<std::string> errors_;
   mutable std::vector<std::string> last_error_;      // per estimator
   mutable std::vector<std::size_t> out_of_memory_;  // per estimator
+  // The last shared targets an estimator handed out, and the checked copy given for them.
+  mutable std::shared_ptr<const ShapeTargets> targets_seen_, targets_checked_;
 };
 
 }  // namespace host

@@ -65,6 +65,8 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::vector<FruitEstimate> fruits() const override;
   PointList extraTargets() const override;
   ShapeTargets viewTargets() const override;
+  std::shared_ptr<const std::vector<FruitEstimate>> sharedFruits() const override;
+  std::shared_ptr<const ShapeTargets> sharedViewTargets() const override;
   void reset() override;
   void cancelUpdate() override;  // for good: the estimator is going away
 
@@ -87,7 +89,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // next update; shape_targets off also empties the targets handed out from now on.
   void setLiveParams(const EstimatorLiveParams& live);
 
-  // Snapshots for display and tests.
+  // Snapshots for display and tests: every fruit of the last update, accepted ones first.
   std::vector<FruitEstimate> estimates() const;
   PointList surface() const;
   IntegrationReport lastIntegration() const;
@@ -125,9 +127,11 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   EstimatorStatus totals_;
   bool dirty_ = false;
   mutable std::mutex results_mutex_;  // guards the last update's results below
-  std::vector<FruitEstimate> estimates_;
+  // Swapped whole by each update, never changed in place: queries share them.
+  std::shared_ptr<const std::vector<FruitEstimate>> accepted_ = std::make_shared<const std::vector<FruitEstimate>>();
+  std::vector<FruitEstimate> rejected_;
   PointList surface_;
-  ShapeTargets targets_;
+  std::shared_ptr<const ShapeTargets> targets_ = std::make_shared<const ShapeTargets>();
   PipelineStats stats_;
   double surface_seconds_ = 0.0;
   mutable std::mutex sightings_mutex_;  // guards sightings_; always taken last

@@ -37,20 +37,20 @@ bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int
 class ShapeTargetRound {
  public:
   ShapeTargetRound() = default;
-  explicit ShapeTargetRound(ShapeTargets targets);
+  explicit ShapeTargetRound(std::shared_ptr<const ShapeTargets> targets);
   std::vector<octomap::point3d> points, directions;
   // To add to the view's utility: the predicted surface a camera at `origin` looking along `dir`
   // sees, lines of sight checked in `tree` (the planner's occupancy tree, its lock held). 0
   // unless target_view_gain > 0.
   template <typename OccupancyTree>
   double viewGain(const octomap::point3d& origin, const octomap::point3d& dir, const OccupancyTree& tree) const {
-    if (targets_.gains.empty()) return 0.0;
-    return shapeViewGain(targets_, Eigen::Vector3d(origin.x(), origin.y(), origin.z()),
+    if (!targets_ || targets_->gains.empty()) return 0.0;
+    return shapeViewGain(*targets_, Eigen::Vector3d(origin.x(), origin.y(), origin.z()),
                          Eigen::Vector3d(dir.x(), dir.y(), dir.z()), occupiedCellsBlock(tree));
   }
 
  private:
-  ShapeTargets targets_;
+  std::shared_ptr<const ShapeTargets> targets_;
 };
 
 class RoiPlannerShapeEstimators {

@@ -71,9 +71,10 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
   const Eigen::Vector3d look = scene.camera_start_look_at;
   double t = 0.0, last_update = -1e300;
   // The estimators' results as the planner sees them, and a fit still running (in simulated time).
+  // Shared with the estimator, as a planner holds them: nothing is copied per update.
   struct FitResults {
-    std::vector<FruitEstimate> fruits;
-    ShapeTargets targets;
+    std::shared_ptr<const std::vector<FruitEstimate>> fruits = std::make_shared<const std::vector<FruitEstimate>>();
+    std::shared_ptr<const ShapeTargets> targets = std::make_shared<const ShapeTargets>();
   } visible, fit;
   bool fit_pending = false;
   double fit_ready = -1e300;
@@ -188,8 +189,8 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
           const double start = clockNow();
           const auto fit0 = std::chrono::steady_clock::now();
           host.update();
-          fit.fruits = host.fruits(0);
-          fit.targets = p.shape_targets ? host.viewTargets() : ShapeTargets();
+          fit.fruits = host.sharedFruits(0);
+          fit.targets = p.shape_targets ? host.sharedViewTargets() : std::make_shared<const ShapeTargets>();
           fit_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - fit0).count();
           fit_ready = start + (p.charge_compute_time ? fit_wall : 0.0);
           fit_pending = true;
@@ -198,12 +199,14 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         rec.view = view;
         rec.time = t;
         rec.position = pos;
-        result.final_fruits = scoreView(tree, truth, visibleNow().fruits, &rec);
+        result.final_fruits = scoreView(tree, truth, *visibleNow().fruits, &rec);
       }
 
       // ViewpointPlanner::plannerLoopOnce: sample both lists, take one, try it best first.
       ++result.planning_rounds;
-      const ShapeTargets extra = p.shape_targets ? visibleNow().targets : ShapeTargets();
+      static const ShapeTargets kNoTargets;
+      const std::shared_ptr<const ShapeTargets> held = visibleNow().targets;  // alive for the round
+      const ShapeTargets& extra = p.shape_targets ? *held : kNoTargets;
       const SampledCandidates sampled = sampleUpstream(tree, workspace, extra, pos, p.sampling, rng);
       const std::vector<SampledView>& chosen = sampled.chosen();
       rec.contour_targets = static_cast<int>(sampled.roi_pool - extra.points.size());

@@ -220,27 +220,55 @@ void ShapeEstimatorHost::update() {
 
 PointList ShapeEstimatorHost::extraTargets() const { return viewTargets().points; }
 
-ShapeTargets ShapeEstimatorHost::viewTargets() const {
-  ShapeTargets all;
-  for (std::size_t i = 0, n = size(); i < n; ++i) {
-    ShapeTargets t;
-    if (!guarded(i, [&](ShapeEstimator& e) { t = e.viewTargets(); })) continue;
-    const bool directed = t.directions.size() == t.points.size();
-    const bool gained = t.gains.size() == t.points.size() && t.view_max_range > 0.0;
-    if (gained && all.view_max_range <= 0.0) {  // the first estimator's cone: one camera
-      all.view_cos_half_angle = t.view_cos_half_angle;
-      all.view_max_range = t.view_max_range;
-    }
-    for (std::size_t k = 0; k < t.points.size(); ++k) {
-      if (!t.points[k].allFinite()) continue;
-      all.points.push_back(t.points[k]);
-      const bool ok = directed && t.directions[k].allFinite();
-      all.directions.push_back(ok ? t.directions[k] : Point::Zero());
-      all.gains.push_back(gained && std::isfinite(t.gains[k]) ? t.gains[k] : 0.0);
-    }
+namespace {
+
+// Appends an estimator's targets to `all`, skipping non-finite points and giving a zero direction
+// or gain where the estimator gives none (or a non-finite one).
+void appendChecked(const ShapeTargets& t, ShapeTargets* all) {
+  const bool directed = t.directions.size() == t.points.size();
+  const bool gained = t.gains.size() == t.points.size() && t.view_max_range > 0.0;
+  if (gained && all->view_max_range <= 0.0) {  // the first estimator's cone: one camera
+    all->view_cos_half_angle = t.view_cos_half_angle;
+    all->view_max_range = t.view_max_range;
   }
-  if (all.view_max_range <= 0.0) all.gains.clear();
+  for (std::size_t k = 0; k < t.points.size(); ++k) {
+    if (!t.points[k].allFinite()) continue;
+    all->points.push_back(t.points[k]);
+    const bool ok = directed && t.directions[k].allFinite();
+    all->directions.push_back(ok ? t.directions[k] : Point::Zero());
+    all->gains.push_back(gained && std::isfinite(t.gains[k]) ? t.gains[k] : 0.0);
+  }
+}
+
+}  // namespace
+
+ShapeTargets ShapeEstimatorHost::viewTargets() const { return *sharedViewTargets(); }
+
+std::shared_ptr<const ShapeTargets> ShapeEstimatorHost::sharedViewTargets() const {
+  std::vector<std::shared_ptr<const ShapeTargets>> parts;
+  for (std::size_t i = 0, n = size(); i < n; ++i) {
+    std::shared_ptr<const ShapeTargets> t;
+    if (guarded(i, [&](ShapeEstimator& e) { t = e.sharedViewTargets(); }) && t) parts.push_back(std::move(t));
+  }
+  if (parts.size() == 1) {  // checked once per update of the one estimator, not per call
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (parts[0] == targets_seen_) return targets_checked_;
+  }
+  auto all = std::make_shared<ShapeTargets>();
+  for (const auto& t : parts) appendChecked(*t, all.get());
+  if (all->view_max_range <= 0.0) all->gains.clear();
+  if (parts.size() == 1) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    targets_seen_ = parts[0];
+    targets_checked_ = all;
+  }
   return all;
+}
+
+std::shared_ptr<const std::vector<FruitEstimate>> ShapeEstimatorHost::sharedFruits(std::size_t i) const {
+  std::shared_ptr<const std::vector<FruitEstimate>> f;
+  guarded(i, [&](ShapeEstimator& e) { f = e.sharedFruits(); });
+  return f ? f : std::make_shared<const std::vector<FruitEstimate>>();
 }
 
 std::vector<FruitEstimate> ShapeEstimatorHost::fruits(std::size_t i) const {

@@ -124,7 +124,7 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
   s.max_blocks = map_.params().maxBlocks();
   s.memory_mb = static_cast<double>(map_.memoryBytes()) / 1048576.0;
   std::lock_guard<std::mutex> results_lock(results_mutex_);
-  for (const auto& f : estimates_) s.fruits += f.accepted ? 1 : 0;
+  s.fruits = accepted_->size();
   return s;
 }
 
@@ -158,33 +158,37 @@ void SuperellipsoidEstimator::update() {
   // Projected points may leave their blocks: then the whole surface is clustered each time.
   pipeline_.update(surface, &cancel_, params_.surface.project_to_zero_crossing ? nullptr : &blocks);
   if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
-  std::vector<FruitEstimate> estimates = pipeline_.takeFruits();
+  std::vector<FruitEstimate> accepted, rejected;
+  for (auto& f : pipeline_.takeFruits()) (f.accepted ? accepted : rejected).push_back(std::move(f));
   ShapeTargets targets;
-  if (params_.shape_targets) targets = selectShapeTargets(estimates, pipeline_.params().missing.samples, params_.targets);
+  if (params_.shape_targets) targets = selectShapeTargets(accepted, pipeline_.params().missing.samples, params_.targets);
   {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
-    sightings_.update(estimates);
+    sightings_.update(accepted);
   }
   std::lock_guard<std::mutex> lock(results_mutex_);
-  estimates_ = std::move(estimates);
+  accepted_ = std::make_shared<const std::vector<FruitEstimate>>(std::move(accepted));
+  rejected_ = std::move(rejected);
   surface_ = std::move(surface);
-  targets_ = std::move(targets);
+  targets_ = std::make_shared<const ShapeTargets>(std::move(targets));
   stats_ = pipeline_.lastStats();
   surface_seconds_ = surface_seconds;
 }
 
-std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const {
+std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const { return *sharedFruits(); }
+
+std::shared_ptr<const std::vector<FruitEstimate>> SuperellipsoidEstimator::sharedFruits() const {
   std::lock_guard<std::mutex> lock(results_mutex_);
-  std::vector<FruitEstimate> out;
-  for (const auto& f : estimates_)
-    if (f.accepted) out.push_back(f);
-  return out;
+  return accepted_;
 }
 
 PointList SuperellipsoidEstimator::extraTargets() const { return viewTargets().points; }
 
-ShapeTargets SuperellipsoidEstimator::viewTargets() const {
-  if (!targets_on_) return {};
+ShapeTargets SuperellipsoidEstimator::viewTargets() const { return *sharedViewTargets(); }
+
+std::shared_ptr<const ShapeTargets> SuperellipsoidEstimator::sharedViewTargets() const {
+  static const auto kNone = std::make_shared<const ShapeTargets>();
+  if (!targets_on_) return kNone;
   std::lock_guard<std::mutex> lock(results_mutex_);
   return targets_;
 }
@@ -204,9 +208,10 @@ void SuperellipsoidEstimator::reset() {
   last_ = IntegrationReport();
   last_input_ = FruitInput();
   dirty_ = false;
-  estimates_.clear();
+  accepted_ = std::make_shared<const std::vector<FruitEstimate>>();
+  rejected_.clear();
   surface_.clear();
-  targets_ = ShapeTargets();
+  targets_ = std::make_shared<const ShapeTargets>();
   stats_ = PipelineStats();
   std::lock_guard<std::mutex> sightings_lock(sightings_mutex_);
   sightings_.clear();
@@ -266,7 +271,9 @@ bool SuperellipsoidEstimator::exportFruits(const std::string& path, std::string*
 
 std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
   std::lock_guard<std::mutex> lock(results_mutex_);
-  return estimates_;
+  std::vector<FruitEstimate> all = *accepted_;
+  all.insert(all.end(), rejected_.begin(), rejected_.end());
+  return all;
 }
 
 PointList SuperellipsoidEstimator::surface() const {

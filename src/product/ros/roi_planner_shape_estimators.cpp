@@ -63,21 +63,22 @@ std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets(std::vecto
   return std::move(round.points);
 }
 
-ShapeTargetRound::ShapeTargetRound(ShapeTargets targets) : targets_(std::move(targets)) {
+ShapeTargetRound::ShapeTargetRound(std::shared_ptr<const ShapeTargets> targets) : targets_(std::move(targets)) {
+  if (!targets_) return;
   auto toOctomap = [](const Point& p) {
     return octomap::point3d(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
   };
-  points.reserve(targets_.points.size());
-  directions.reserve(targets_.points.size());
-  for (std::size_t i = 0; i < targets_.points.size(); ++i) {
-    points.push_back(toOctomap(targets_.points[i]));
-    directions.push_back(toOctomap(targets_.directions[i]));
+  points.reserve(targets_->points.size());
+  directions.reserve(targets_->points.size());
+  for (std::size_t i = 0; i < targets_->points.size(); ++i) {
+    points.push_back(toOctomap(targets_->points[i]));
+    directions.push_back(toOctomap(targets_->directions[i]));
   }
 }
 
 ShapeTargetRound RoiPlannerShapeEstimators::targetRound() const {
   try {
-    return ShapeTargetRound(loader_.host().viewTargets());
+    return ShapeTargetRound(loader_.host().sharedViewTargets());
   } catch (const std::exception& e) {
     ROS_ERROR("shape estimators: no extra targets this time: %s", e.what());
     return ShapeTargetRound();

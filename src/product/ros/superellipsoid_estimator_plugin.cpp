@@ -143,6 +143,12 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::vector<FruitEstimate> fruits() const override { return check(), estimator_->fruits(); }
   PointList extraTargets() const override { return check(), estimator_->extraTargets(); }
   ShapeTargets viewTargets() const override { return check(), estimator_->viewTargets(); }
+  std::shared_ptr<const std::vector<FruitEstimate>> sharedFruits() const override {
+    return check(), estimator_->sharedFruits();
+  }
+  std::shared_ptr<const ShapeTargets> sharedViewTargets() const override {
+    return check(), estimator_->sharedViewTargets();
+  }
   void reset() override {
     check();
     if (camera_buffer_) camera_buffer_->clear();
