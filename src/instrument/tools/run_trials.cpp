@@ -301,7 +301,9 @@ int main(int argc, char** argv) {
   }
   for (int k = 0; k < trials; ++k) {
     std::ofstream f(out + "/final_fruits_" + std::to_string(k) + ".csv");
-    f << "id,x,y,z,volume_cm3,volume_ci90_lo_cm3,volume_ci90_hi_cm3,points,nearest_truth,distance_cm\n";
+    // seen_share, rms_mm and min_axis_mm are what the volume interval is made from.
+    f << "id,x,y,z,volume_cm3,volume_ci90_lo_cm3,volume_ci90_hi_cm3,points,nearest_truth,distance_cm,seen_share,rms_mm,"
+         "min_axis_mm\n";
     for (const auto& e : results[k].final_fruits) {
       int nearest = -1;
       double best = 1e300;
@@ -310,7 +312,9 @@ int main(int argc, char** argv) {
         if (d < best) best = d, nearest = static_cast<int>(i);
       }
       f << e.id << ',' << e.center().x() << ',' << e.center().y() << ',' << e.center().z() << ',' << e.volume * 1e6
-        << ',' << e.volume_lo * 1e6 << ',' << e.volume_hi * 1e6 << ',' << e.n_points << ',' << nearest << ',' << (nearest >= 0 ? best * 100 : -1) << '\n';
+        << ',' << e.volume_lo * 1e6 << ',' << e.volume_hi * 1e6 << ',' << e.n_points << ',' << nearest << ','
+        << (nearest >= 0 ? best * 100 : -1) << ',' << seenCoverage(e, estimator.pipeline.missing.samples) << ','
+        << e.rms * 1e3 << ',' << 1e3 * std::min({e.shape.a, e.shape.b, e.shape.c}) << '\n';
     }
   }
 
