@@ -15,6 +15,7 @@
 #include <new>
 #include <chrono>
 #include <mutex>
+#include <limits>
 #include <thread>
 #include <unistd.h>
 
@@ -424,6 +425,7 @@ TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAft
   // Asked again without an update: the same snapshots, nothing copied or checked again.
   EXPECT_EQ(host.sharedFruits(0), fruits);
   EXPECT_EQ(host.sharedViewTargets(), targets);
+  EXPECT_EQ(targets, est.sharedViewTargets()) << "clean targets are passed on, not copied";
   EXPECT_EQ(host.viewTargets().points, targets->points);
   const FruitEstimate before = (*fruits)[0];
   const std::size_t target_count = targets->points.size();
@@ -441,6 +443,39 @@ TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAft
   live.shape_targets = false;
   est.setLiveParams(live);
   EXPECT_TRUE(host.sharedViewTargets()->points.empty());
+}
+
+TEST(ShapeEstimatorHost, TargetsWithNonFiniteValuesAreFixedOnceNotPassedOn) {
+  // Another estimator's targets: a NaN point (dropped) and a NaN direction (made "any side").
+  class DirtyTargets : public ShapeEstimator {
+   public:
+    std::string name() const override { return "dirty"; }
+    void insertView(const ViewData&) override {}
+    void update() override {}
+    std::vector<FruitEstimate> fruits() const override { return {}; }
+    PointList extraTargets() const override { return viewTargets().points; }
+    ShapeTargets viewTargets() const override { return *snapshot_; }
+    std::shared_ptr<const ShapeTargets> sharedViewTargets() const override { return snapshot_; }
+    void reset() override {}
+
+   private:
+    std::shared_ptr<const ShapeTargets> snapshot_ = [] {
+      auto t = std::make_shared<ShapeTargets>();
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      t->points = {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(nan, 0, 1), Eigen::Vector3d(0, 1, 1)};
+      t->directions = {Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(nan, 0, 0)};
+      return t;
+    }();
+  };
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<DirtyTargets>());
+  const auto fixed = host.sharedViewTargets();
+  ASSERT_EQ(fixed->points.size(), 2u);
+  EXPECT_EQ(fixed->points[1], Eigen::Vector3d(0, 1, 1));
+  EXPECT_EQ(fixed->directions[0], Eigen::Vector3d(1, 0, 0));
+  EXPECT_EQ(fixed->directions[1], Eigen::Vector3d::Zero());
+  EXPECT_NE(fixed, host.estimator(0).sharedViewTargets());
+  EXPECT_EQ(host.sharedViewTargets(), fixed);  // fixed once per snapshot
 }
 
 // Live settings (dynamic_reconfigure's thread), fruit exports (a service thread), target and

@@ -159,7 +159,8 @@ class ShapeEstimatorHost {
   mutable std::vector<std::string> errors_;
   mutable std::vector<std::string> last_error_;      // per estimator
   mutable std::vector<std::size_t> out_of_memory_;  // per estimator
-  // The last shared targets an estimator handed out, and the checked copy given for them.
+  // The last shared targets an estimator handed out, and what was given for them (the same
+  // snapshot when nothing needed fixing).
   mutable std::shared_ptr<const ShapeTargets> targets_seen_, targets_checked_;
 };
 

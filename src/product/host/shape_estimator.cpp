@@ -240,6 +240,17 @@ void appendChecked(const ShapeTargets& t, ShapeTargets* all) {
   }
 }
 
+// True if appendChecked would hand over `t` unchanged: then it is passed on without a copy.
+bool alreadyChecked(const ShapeTargets& t) {
+  const std::size_t n = t.points.size();
+  if (t.directions.size() != n) return false;
+  const bool gained = t.view_max_range > 0.0;
+  if (gained ? t.gains.size() != n : !t.gains.empty()) return false;
+  for (std::size_t k = 0; k < n; ++k)
+    if (!t.points[k].allFinite() || !t.directions[k].allFinite() || (gained && !std::isfinite(t.gains[k]))) return false;
+  return true;
+}
+
 }  // namespace
 
 ShapeTargets ShapeEstimatorHost::viewTargets() const { return *sharedViewTargets(); }
@@ -254,15 +265,21 @@ std::shared_ptr<const ShapeTargets> ShapeEstimatorHost::sharedViewTargets() cons
     std::lock_guard<std::mutex> lock(mutex_);
     if (parts[0] == targets_seen_) return targets_checked_;
   }
-  auto all = std::make_shared<ShapeTargets>();
-  for (const auto& t : parts) appendChecked(*t, all.get());
-  if (all->view_max_range <= 0.0) all->gains.clear();
+  std::shared_ptr<const ShapeTargets> checked;
+  if (parts.size() == 1 && alreadyChecked(*parts[0])) {
+    checked = parts[0];
+  } else {
+    auto all = std::make_shared<ShapeTargets>();
+    for (const auto& t : parts) appendChecked(*t, all.get());
+    if (all->view_max_range <= 0.0) all->gains.clear();
+    checked = std::move(all);
+  }
   if (parts.size() == 1) {
     std::lock_guard<std::mutex> lock(mutex_);
     targets_seen_ = parts[0];
-    targets_checked_ = all;
+    targets_checked_ = checked;
   }
-  return all;
+  return checked;
 }
 
 std::shared_ptr<const std::vector<FruitEstimate>> ShapeEstimatorHost::sharedFruits(std::size_t i) const {
