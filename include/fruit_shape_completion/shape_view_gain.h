@@ -22,16 +22,18 @@ using RayBlocked = std::function<bool(const Eigen::Vector3d& from, const Eigen::
 double shapeViewGain(const ShapeTargets& targets, const Eigen::Vector3d& origin, const Eigen::Vector3d& view_dir,
                      const RayBlocked& blocked = nullptr, int max_rays = 32);
 
+// An Eigen point as OctoMap's single-precision point (the planner's octree speaks octomap).
+inline octomap::point3d toOctomapPoint(const Eigen::Vector3d& v) {
+  return octomap::point3d(static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z()));
+}
+
 // Lines of sight through an octomap occupancy tree (the planner's map; the caller holds its
 // lock): blocked by any occupied cell on the line, or where the line leaves the tree.
 template <typename OccupancyTree>
 RayBlocked occupiedCellsBlock(const OccupancyTree& tree) {
   return [&tree](const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
-    auto p = [](const Eigen::Vector3d& v) {
-      return octomap::point3d(static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z()));
-    };
     octomap::KeyRay ray;
-    if (!tree.computeRayKeys(p(from), p(to), ray)) return true;
+    if (!tree.computeRayKeys(toOctomapPoint(from), toOctomapPoint(to), ray)) return true;
     for (const auto& k : ray) {
       const auto* n = tree.search(k);
       if (n != nullptr && tree.isNodeOccupied(n)) return true;

@@ -16,9 +16,6 @@ namespace {
 
 using KeySet = std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash>;
 
-octomap::point3d toPoint(const Eigen::Vector3d& p) {
-  return octomap::point3d(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
-}
 Eigen::Vector3d toEigen(const octomap::point3d& p) { return Eigen::Vector3d(p.x(), p.y(), p.z()); }
 
 octomap::OcTreeKey offset(const octomap::OcTreeKey& k, int dx, int dy, int dz) {
@@ -146,7 +143,8 @@ PointList roiContourPool(const RoiOcTree& tree, const std::vector<octomap::OcTre
 
 std::vector<octomap::OcTreeKey> contourKeys(const RoiOcTree& tree, const sim::Workspace& region) {
   std::vector<octomap::OcTreeKey> keys;
-  for (auto it = tree.begin_leafs_bbx(toPoint(region.box_min), toPoint(region.box_max)), end = tree.end_leafs_bbx();
+  for (auto it = tree.begin_leafs_bbx(toOctomapPoint(region.box_min), toOctomapPoint(region.box_max)),
+            end = tree.end_leafs_bbx();
        it != end; ++it) {
     if (!region.contains(toEigen(it.getCoordinate()))) continue;
     if (it->getLogOdds() < 0.0f && hasUnknownAndOccupiedNeighbour6(tree, it.getKey())) keys.push_back(it.getKey());
@@ -170,7 +168,7 @@ Eigen::Vector3d surfaceNormalDir(const RoiOcTree& tree, const octomap::OcTreeKey
 double roiWeightedGain(const RoiOcTree& tree, const InflatedRois& inflated, const Eigen::Vector3d& origin,
                        const Eigen::Vector3d& target) {
   octomap::KeyRay ray;
-  if (!tree.computeRayKeys(toPoint(origin), toPoint(target), ray) || ray.size() == 0) return 0.0;
+  if (!tree.computeRayKeys(toOctomapPoint(origin), toOctomapPoint(target), ray) || ray.size() == 0) return 0.0;
   double sum = 0.0;
   for (const auto& k : ray) {
     const double weight = 0.5 + 0.5 * inflated.value(tree.keyToCoord(k));
@@ -243,7 +241,7 @@ SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& wo
     v.target = contour;
     v.direction = -normal;
     if (!workspace.contains(v.origin)) continue;
-    if (occupancyState(tree.search(toPoint(v.origin))) == 1) continue;
+    if (occupancyState(tree.search(toOctomapPoint(v.origin))) == 1) continue;
     out.exploration.push_back(score(v));
   }
   sortBestFirst(&out.roi);

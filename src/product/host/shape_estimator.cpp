@@ -218,7 +218,7 @@ void ShapeEstimatorHost::update() {
   for (std::size_t i = 0, n = size(); i < n; ++i) guarded(i, [&](ShapeEstimator& e) { e.update(); });
 }
 
-PointList ShapeEstimatorHost::extraTargets() const { return viewTargets().points; }
+PointList ShapeEstimatorHost::extraTargets() const { return sharedViewTargets()->points; }
 
 namespace {
 

@@ -182,7 +182,7 @@ std::shared_ptr<const std::vector<FruitEstimate>> SuperellipsoidEstimator::share
   return accepted_;
 }
 
-PointList SuperellipsoidEstimator::extraTargets() const { return viewTargets().points; }
+PointList SuperellipsoidEstimator::extraTargets() const { return sharedViewTargets()->points; }
 
 ShapeTargets SuperellipsoidEstimator::viewTargets() const { return *sharedViewTargets(); }
 

@@ -65,14 +65,11 @@ std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets(std::vecto
 
 ShapeTargetRound::ShapeTargetRound(std::shared_ptr<const ShapeTargets> targets) : targets_(std::move(targets)) {
   if (!targets_) return;
-  auto toOctomap = [](const Point& p) {
-    return octomap::point3d(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
-  };
   points.reserve(targets_->points.size());
   directions.reserve(targets_->points.size());
   for (std::size_t i = 0; i < targets_->points.size(); ++i) {
-    points.push_back(toOctomap(targets_->points[i]));
-    directions.push_back(toOctomap(targets_->directions[i]));
+    points.push_back(toOctomapPoint(targets_->points[i]));
+    directions.push_back(toOctomapPoint(targets_->directions[i]));
   }
 }
 

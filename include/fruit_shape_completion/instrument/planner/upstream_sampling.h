@@ -74,7 +74,8 @@ struct SampledCandidates {
 
 // RoiContourSampler over the pool plus `extra` (the integration patch's shape targets; a
 // sphere point on the side away from a target's direction is mirrored to the side it faces, and
-// the predicted surface a view sees adds to its utility, as the patch does) and ContourSampler, both scored by ROI_VICINITY_UTILITY from `camera`;
+// the predicted surface a view sees adds to its utility, as the patch does) and ContourSampler,
+// both scored by ROI_VICINITY_UTILITY from `camera`;
 // samples whose origin is outside the workspace are dropped, as upstream drops those outside
 // its workspace tree.
 SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& workspace,
