@@ -1,6 +1,7 @@
 #pragma once
 // One estimated fruit: what the pipeline reports for a cluster of the surface cloud, and what
 // shape estimators hand the planner (its evaluation reads center() and volume).
+#include <fruit_shape_completion/shared_points.h>
 #include <fruit_shape_completion/superellipsoid.h>
 
 #include <string>
@@ -24,9 +25,10 @@ struct FruitEstimate {
   int iterations = 0;
   double fit_seconds = 0.0;
   bool refitted = false;  // false: points unchanged since the previous update, fit reused
-  PointList missing_surface;  // predicted unseen surface samples (accepted fruits only)
-  PointList missing_normals;  // the fitted surface's outward unit normal at each of them
-  PointList points;           // the observed points of this fruit (its cluster, or its part)
+  // Shared by the estimate's copies (shared_points.h): copying an estimate copies no points.
+  SharedPoints missing_surface;  // predicted unseen surface samples (accepted fruits only)
+  SharedPoints missing_normals;  // the fitted surface's outward unit normal at each of them
+  SharedPoints points;           // the observed points of this fruit (its cluster, or its part)
 
   Eigen::Vector3d center() const { return shape.t; }
   // A fruit known only by its centre and volume (e.g. the planner's ROI cluster boxes).

@@ -29,7 +29,14 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
 class IncrementalSurfaceExtractor {
  public:
   explicit IncrementalSurfaceExtractor(const SurfaceExtractionParams& params = {}) : params_(params) {}
-  PointList extract(const TsdfMap& map);
+  PointList extract(const TsdfMap& map) {
+    PointList out;
+    extract(map, &out);
+    return out;
+  }
+  // Into *out, replacing its points: a caller that keeps a cloud from one call to the next
+  // reuses its memory instead of faulting in a new cloud of the whole surface.
+  void extract(const TsdfMap& map, PointList* out);
   std::size_t lastBlocksExtracted() const { return last_extracted_; }
   // The last cloud's blocks and the blocks changed since the cloud before (all of them after
   // the map was cleared or loaded). Without projection only: a projected point may leave its block.

@@ -138,6 +138,14 @@ TEST(FruitShapePipeline, IdsAreStableAndUnchangedFruitsAreNotRefitted) {
   EXPECT_TRUE(f1->refitted);
   EXPECT_EQ(nearest(third, s2.t)->id, id2);
   EXPECT_NEAR(f1->volume, s1.volume(), 0.05 * s1.volume());
+  // The unchanged fruit 2 is carried over, and handed out, without a copy of its points: an
+  // update costs what changed, not every fruit mapped.
+  const FruitEstimate* kept2 = nearest(third, s2.t);
+  EXPECT_FALSE(kept2->refitted);
+  EXPECT_TRUE(kept2->points.sharesWith(nearest(second, s2.t)->points));
+  EXPECT_FALSE(kept2->missing_surface.empty());
+  EXPECT_TRUE(kept2->missing_surface.sharesWith(nearest(first, s2.t)->missing_surface));
+  EXPECT_FALSE(f1->points.sharesWith(nearest(second, s1.t)->points));
 
   // A new fruit gets a new id; a vanished one is gone.
   PointList c = scan(s1, 0.9, Eigen::Vector3d(0, 1, 0), 1);

@@ -19,8 +19,10 @@ FruitEstimate halfSeen(const Superellipsoid& shape, double z_seen, int samples =
   FruitEstimate f;
   f.shape = shape;
   f.accepted = true;
+  PointList seen;
   for (const auto& p : shape.sampleSurface(2000))
-    if (p.z() - shape.t.z() > z_seen) f.points.push_back(p);
+    if (p.z() - shape.t.z() > z_seen) seen.push_back(p);
+  f.points = seen;
   MissingSurfaceParams m;
   m.samples = samples;
   f.missing_surface = predictMissingSurface(shape, f.points, m);

@@ -18,8 +18,10 @@ FruitEstimate upperHalfSeen() {
   FruitEstimate f;
   f.shape = Superellipsoid::sphere(0.04, Eigen::Vector3d(0, 0, 0.5));
   f.accepted = true;
+  PointList seen;
   for (const auto& p : f.shape.sampleSurface(2000))
-    if (p.z() > 0.5) f.points.push_back(p);
+    if (p.z() > 0.5) seen.push_back(p);
+  f.points = seen;
   f.missing_surface = predictMissingSurface(f.shape, f.points, MissingSurfaceParams());
   return f;
 }

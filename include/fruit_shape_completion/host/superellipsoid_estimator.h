@@ -118,6 +118,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
   std::atomic<int> resets_waiting_{0};  // resets that set cancel_ and wait for the fit
   FruitShapePipeline pipeline_;
+  PointList spare_surface_;  // guarded by fit_mutex_: the cloud before last, its memory reused
   mutable std::mutex map_mutex_;  // guards the members below up to results_mutex_
   TsdfMap map_;
   IncrementalSurfaceExtractor surface_extractor_;

@@ -200,10 +200,13 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e) {
   e->missing_normals.clear();
   if (!e->accepted || params_.missing.samples <= 0) return;
   const auto start = std::chrono::steady_clock::now();
-  e->missing_surface = predictMissingSurface(e->shape, e->points, params_.missing);
+  PointList surface = predictMissingSurface(e->shape, e->points, params_.missing);
   // Computed once per fit, not at every hand-over of the targets.
-  e->missing_normals.reserve(e->missing_surface.size());
-  for (const auto& s : e->missing_surface) e->missing_normals.push_back(outwardNormal(e->shape, s));
+  PointList normals;
+  normals.reserve(surface.size());
+  for (const auto& s : surface) normals.push_back(outwardNormal(e->shape, s));
+  e->missing_surface = std::move(surface);
+  e->missing_normals = std::move(normals);
   const Superellipsoid& se = e->shape;
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
   const VolumeInterval ci = volumeInterval90(e->volume, seenCoverage(*e, params_.missing.samples), e->rms, at_bound);

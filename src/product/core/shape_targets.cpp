@@ -48,11 +48,23 @@ ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int su
     targets.view_cos_half_angle = std::cos(0.5 * params.view_fov_deg * M_PI / 180.0);
     targets.view_max_range = params.view_max_range;
   }
-  for (const auto& f : fruits) {
-    if (!f.accepted || f.missing_surface.empty()) continue;
-    if (params.settled_coverage < 1.0 && seenCoverage(f, surface_samples) >= params.settled_coverage) continue;
+  auto handsOver = [&](const FruitEstimate& f) {
+    return f.accepted && !f.missing_surface.empty() &&
+           !(params.settled_coverage < 1.0 && seenCoverage(f, surface_samples) >= params.settled_coverage);
+  };
+  auto kept = [&](const FruitEstimate& f) {
     const std::size_t n = f.missing_surface.size();
-    const std::size_t keep = params.per_fruit > 0 ? std::min<std::size_t>(n, params.per_fruit) : n;
+    return params.per_fruit > 0 ? std::min<std::size_t>(n, params.per_fruit) : n;
+  };
+  std::size_t total = 0;  // reserved once: the targets of a whole row are megabytes
+  for (const auto& f : fruits) total += handsOver(f) ? kept(f) : 0;
+  targets.points.reserve(total);
+  targets.directions.reserve(total);
+  if (params.view_gain > 0.0 && surface_samples > 0) targets.gains.reserve(total);
+  for (const auto& f : fruits) {
+    if (!handsOver(f)) continue;
+    const std::size_t n = f.missing_surface.size();
+    const std::size_t keep = kept(f);
     // Evenly strided: the samples come in surface-parameter order, so a stride spreads them.
     for (std::size_t i = 0; i < keep; ++i) {
       const std::size_t k = i * n / keep;

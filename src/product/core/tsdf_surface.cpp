@@ -65,7 +65,7 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
   return out;
 }
 
-PointList IncrementalSurfaceExtractor::extract(const TsdfMap& map) {
+void IncrementalSurfaceExtractor::extract(const TsdfMap& map, PointList* cloud) {
   const bool fresh = map.epoch() != epoch_ || blocks_.empty();
   if (map.epoch() != epoch_) {
     blocks_.clear();
@@ -88,8 +88,11 @@ PointList IncrementalSurfaceExtractor::extract(const TsdfMap& map) {
   });
   // The cache is updated in place: a view changes a few blocks of a map that only grows (blocks
   // go only when the map is cleared or loaded, which changes its epoch).
-  PointList out;
-  out.reserve(last_total_);
+  PointList& out = *cloud;
+  out.clear();
+  // With room to grow: a map grows by a few points a view, and each reallocation faults in
+  // the whole cloud anew.
+  if (out.capacity() < last_total_) out.reserve(last_total_ + last_total_ / 4);
   last_extracted_ = 0;
   last_blocks_ = SurfaceBlocks();
   last_blocks_.block_size = map.voxelsPerSide() * map.voxelSize();
@@ -126,7 +129,6 @@ PointList IncrementalSurfaceExtractor::extract(const TsdfMap& map) {
     }
   }
   last_total_ = out.size();
-  return out;
 }
 
 TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {

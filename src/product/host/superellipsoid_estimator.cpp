@@ -140,14 +140,15 @@ void SuperellipsoidEstimator::update() {
       live_pending_ = false;
     }
   }
-  PointList surface;
+  // Into the cloud before last, reusing its memory (surface_ keeps the last one for queries).
+  PointList& surface = spare_surface_;
   SurfaceBlocks blocks;
   double surface_seconds = 0.0;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
     if (!dirty_) return;
     const auto start = std::chrono::steady_clock::now();
-    surface = surface_extractor_.extract(map_);
+    surface_extractor_.extract(map_, &surface);
     blocks = surface_extractor_.lastBlocks();
     surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     dirty_ = false;
@@ -169,7 +170,7 @@ void SuperellipsoidEstimator::update() {
   std::lock_guard<std::mutex> lock(results_mutex_);
   accepted_ = std::make_shared<const std::vector<FruitEstimate>>(std::move(accepted));
   rejected_ = std::move(rejected);
-  surface_ = std::move(surface);
+  surface_.swap(surface);
   targets_ = std::make_shared<const ShapeTargets>(std::move(targets));
   stats_ = pipeline_.lastStats();
   surface_seconds_ = surface_seconds;
@@ -211,6 +212,7 @@ void SuperellipsoidEstimator::reset() {
   accepted_ = std::make_shared<const std::vector<FruitEstimate>>();
   rejected_.clear();
   surface_.clear();
+  spare_surface_ = PointList();
   targets_ = std::make_shared<const ShapeTargets>();
   stats_ = PipelineStats();
   std::lock_guard<std::mutex> sightings_lock(sightings_mutex_);
