@@ -69,12 +69,12 @@ class FruitShapePipeline {
   // Processes a new surface cloud (the whole current fruit surface, not a delta) and returns
   // all fruits, accepted or not, largest cluster first. If `cancel` becomes true it returns
   // between two clusters with the previous update's fruits and tracks unchanged.
-  // `blocks` (the cloud's blocks and which changed): clusters are formed again only around the
-  // changed blocks, as far as they reach, and every other fruit is carried over as it was; the
-  // fruits are those of a whole update (the same clusters; ids and order may differ).
-  const std::vector<FruitEstimate>& update(const PointList& surface_cloud,
-                                           const std::atomic<bool>* cancel = nullptr,
-                                           const SurfaceBlocks* blocks = nullptr);
+  const std::vector<FruitEstimate>& update(const PointList& surface_cloud, const std::atomic<bool>* cancel = nullptr);
+  // The same surface by blocks (which changed, surface_blocks.h): clusters are formed again
+  // only around the changed blocks, as far as they reach, and every other fruit is carried over
+  // as it was; the fruits are those of a whole update (the same clusters; ids and order may
+  // differ). The first update, and one after new settings, clusters it all.
+  const std::vector<FruitEstimate>& update(const SurfaceBlocks& surface, const std::atomic<bool>* cancel = nullptr);
 
   const std::vector<FruitEstimate>& fruits() const { return fruits_; }
   // The last update's fruits, moved out (fruits() is empty until the next update): saves a
@@ -141,10 +141,13 @@ class FruitShapePipeline {
   int stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
                        const std::vector<char>& reused) const;
 
-  // The clusters around the changed blocks, as far as they reach (indices into `cloud`, size
-  // filtered, largest first); moves the tracks they do not reach to `untouched`.
-  std::vector<std::vector<int>> localClusters(const PointList& cloud, const SurfaceBlocks& blocks,
-                                              std::vector<Track>* untouched);
+  // Either surface: `cloud`, or `blocks` (then `cloud` only if the caller already has it).
+  const std::vector<FruitEstimate>& run(const PointList* cloud, const SurfaceBlocks* blocks,
+                                        const std::atomic<bool>* cancel);
+  // The clusters around the changed blocks, as far as they reach (indices into *sub, the
+  // finite points gathered from the blocks around them; size filtered, largest first); moves
+  // the tracks they do not reach to `untouched`.
+  std::vector<std::vector<int>> localClusters(const SurfaceBlocks& blocks, PointList* sub, std::vector<Track>* untouched);
 
   PipelineParams params_;
   bool local_ready_ = false;     // the tracks know their blocks, of this block size

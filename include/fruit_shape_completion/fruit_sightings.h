@@ -24,6 +24,9 @@ class FruitSightingLog {
   struct View {
     double time;
     PointList points;
+    // Their bounds: a fruit out of reach of the box is skipped without a look at each point
+    // (a row holds hundreds of fruits, a view sees a few).
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
   };
   static bool saw(const View& view, const FruitEstimate& fruit);
   static void record(const View& view, FruitSightings* s);

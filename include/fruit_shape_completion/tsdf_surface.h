@@ -24,34 +24,27 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
 
 // The same points, extracted again only from the blocks that changed since the last call (and,
 // with project_to_zero_crossing, their neighbours): each view touches a few blocks of a map.
-// The output equals extractSurfacePoints' (same order). Not thread-safe; the caller holds the
-// map's lock.
+// Not thread-safe; the caller holds the map's lock.
 class IncrementalSurfaceExtractor {
  public:
   explicit IncrementalSurfaceExtractor(const SurfaceExtractionParams& params = {}) : params_(params) {}
-  PointList extract(const TsdfMap& map) {
-    PointList out;
-    extract(map, &out);
-    return out;
-  }
-  // Into *out, replacing its points: a caller that keeps a cloud from one call to the next
-  // reuses its memory instead of faulting in a new cloud of the whole surface.
-  void extract(const TsdfMap& map, PointList* out);
+  // The surface by blocks, which changed since the last call (all of them after the map was
+  // cleared or loaded). Unchanged blocks share their points with the previous result.
+  const SurfaceBlocks& extractBlocks(const TsdfMap& map);
+  // The whole cloud: extractSurfacePoints' points, in its order.
+  PointList extract(const TsdfMap& map) { return extractBlocks(map).cloud(); }
   std::size_t lastBlocksExtracted() const { return last_extracted_; }
-  // The last cloud's blocks and the blocks changed since the cloud before (all of them after
-  // the map was cleared or loaded). Without projection only: a projected point may leave its block.
   const SurfaceBlocks& lastBlocks() const { return last_blocks_; }
 
  private:
   struct CachedBlock {
     std::uint64_t revision = 0;
-    PointList points;
+    SharedPoints points;
   };
   SurfaceExtractionParams params_;
   std::uint64_t epoch_ = 0;
   std::unordered_map<std::uint64_t, CachedBlock> blocks_;  // by block coordinates (packCellKey)
   std::size_t last_extracted_ = 0;
-  std::size_t last_total_ = 0;  // points of the last cloud
   SurfaceBlocks last_blocks_;
 };
 

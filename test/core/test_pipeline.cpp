@@ -198,7 +198,7 @@ TEST(FruitShapePipeline, AReobservedFruitTheFitStillExplainsIsNotRefitted) {
 
 TEST(FruitShapePipeline, BadInputIsCountedNotFatal) {
   FruitShapePipeline pipeline;
-  EXPECT_TRUE(pipeline.update({}).empty());
+  EXPECT_TRUE(pipeline.update(PointList()).empty());
   EXPECT_EQ(pipeline.lastStats().clusters, 0);
 
   const double nan = std::numeric_limits<double>::quiet_NaN();

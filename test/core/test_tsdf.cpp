@@ -594,10 +594,20 @@ TEST(TsdfMap, IncrementalSurfaceExtractionTouchesOnlyChangedBlocks) {
     expectSame();
     EXPECT_EQ(incremental.lastBlocksExtracted(), map.blockCount());
     const std::size_t blocks = map.blockCount();
+    const SurfaceBlocks before = incremental.lastBlocks();
     integrateViews(map, integ, near_scene, near_scene.shapes[0].t, 1, 0.0, 7);
     expectSame();
     EXPECT_GE(incremental.lastBlocksExtracted(), 1u);
     EXPECT_LT(incremental.lastBlocksExtracted(), blocks) << (project ? "projection on" : "projection off");
+    // The far sphere's blocks hand over the very lists they held: no copy of unchanged points.
+    int shared = 0, far_blocks = 0;
+    for (const auto& b : incremental.lastBlocks().blocks) {
+      if (b.points.front().x() < 0.5) continue;
+      ++far_blocks;
+      for (const auto& o : before.blocks) shared += o.block == b.block && o.points.sharesWith(b.points);
+    }
+    EXPECT_GT(far_blocks, 0);
+    EXPECT_EQ(shared, far_blocks);
     incremental.extract(map);
     EXPECT_EQ(incremental.lastBlocksExtracted(), 0u);  // nothing changed since
     map.clear();
@@ -633,7 +643,7 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
                                                          Eigen::Vector3d(x + 0.05, 0.0, 0.5), 160, 120);
       ASSERT_TRUE(integrateFruitView(map, integ, scene, cam, 0.001, 100 + views).ok());
       const PointList surface = extractor.extract(map);
-      const auto& a = local.update(surface, nullptr, &extractor.lastBlocks());
+      const auto& a = local.update(extractor.lastBlocks());
       const auto& b = whole.update(surface);
       local_updates += local.lastStats().local;
       if (x > 1.0) {

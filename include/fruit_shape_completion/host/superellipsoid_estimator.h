@@ -118,7 +118,6 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
   std::atomic<int> resets_waiting_{0};  // resets that set cancel_ and wait for the fit
   FruitShapePipeline pipeline_;
-  PointList spare_surface_;  // guarded by fit_mutex_: the cloud before last, its memory reused
   mutable std::mutex map_mutex_;  // guards the members below up to results_mutex_
   TsdfMap map_;
   IncrementalSurfaceExtractor surface_extractor_;
@@ -131,7 +130,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // Swapped whole by each update, never changed in place: queries share them.
   std::shared_ptr<const std::vector<FruitEstimate>> accepted_ = std::make_shared<const std::vector<FruitEstimate>>();
   std::vector<FruitEstimate> rejected_;
-  PointList surface_;
+  SurfaceBlocks surface_;
   std::shared_ptr<const ShapeTargets> targets_ = std::make_shared<const ShapeTargets>();
   PipelineStats stats_;
   double surface_seconds_ = 0.0;

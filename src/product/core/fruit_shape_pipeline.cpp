@@ -216,29 +216,49 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e) {
 }
 
 const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& surface_cloud,
-                                                             const std::atomic<bool>* cancel,
-                                                             const SurfaceBlocks* blocks) {
+                                                             const std::atomic<bool>* cancel) {
+  return run(&surface_cloud, nullptr, cancel);
+}
+
+const std::vector<FruitEstimate>& FruitShapePipeline::update(const SurfaceBlocks& surface,
+                                                             const std::atomic<bool>* cancel) {
+  return run(nullptr, &surface, cancel);
+}
+
+const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud, const SurfaceBlocks* blocks,
+                                                          const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
   stats_ = PipelineStats();
-  stats_.input_points = static_cast<int>(surface_cloud.size());
-  for (const auto& p : surface_cloud) stats_.non_finite_points += p.allFinite() ? 0 : 1;
-  PointList filtered;  // a copy only when some point must go
-  if (stats_.non_finite_points > 0) {
-    filtered.reserve(surface_cloud.size());
-    for (const auto& p : surface_cloud)
-      if (p.allFinite()) filtered.push_back(p);
-  }
-  const PointList& finite = stats_.non_finite_points > 0 ? filtered : surface_cloud;
-
-  const auto cluster_start = std::chrono::steady_clock::now();
   if (blocks != nullptr)
     pending_changed_.insert(pending_changed_.end(), blocks->changed.begin(), blocks->changed.end());
-  // Around the changed blocks only, when the tracks know their blocks of this size; the cloud's
-  // ranges index `finite` only when nothing was skipped.
-  const bool local = blocks != nullptr && local_ready_ && !blocks->all_changed && stats_.non_finite_points == 0 &&
+  // Around the changed blocks only, when the tracks know their blocks of this size.
+  const bool local = blocks != nullptr && local_ready_ && !blocks->all_changed && blocks->points_in_blocks &&
                      blocks->block_size == local_block_size_ && blocks->block_size > params_.clustering.tolerance;
+  PointList assembled;  // the whole cloud from the blocks, when all of it is clustered
+  if (!local && cloud == nullptr) {
+    assembled = blocks->cloud();
+    cloud = &assembled;
+  }
+  PointList filtered;  // the finite points: a copy only when some point must go
+  PointList gathered;  // local: the points around the changed blocks
+  const auto cluster_start = std::chrono::steady_clock::now();
   std::vector<Track> untouched;  // fruits the changed blocks do not reach: carried over as they are
-  const auto clusters = local ? localClusters(finite, *blocks, &untouched) : euclideanClusters(finite, params_.clustering);
+  std::vector<std::vector<int>> clusters;
+  if (local) {
+    stats_.input_points = static_cast<int>(blocks->size());
+    clusters = localClusters(*blocks, &gathered, &untouched);
+  } else {
+    stats_.input_points = static_cast<int>(cloud->size());
+    for (const auto& p : *cloud) stats_.non_finite_points += p.allFinite() ? 0 : 1;
+    if (stats_.non_finite_points > 0) {
+      filtered.reserve(cloud->size());
+      for (const auto& p : *cloud)
+        if (p.allFinite()) filtered.push_back(p);
+    }
+    clusters = euclideanClusters(stats_.non_finite_points > 0 ? filtered : *cloud, params_.clustering);
+  }
+  // What the clusters index.
+  const PointList& finite = local ? gathered : stats_.non_finite_points > 0 ? filtered : *cloud;
   stats_.local = local;
   stats_.clusters = static_cast<int>(clusters.size());
   stats_.cluster_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - cluster_start).count();
@@ -347,7 +367,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& su
     next.push_back(std::move(pending[f]));
   }
   // The blocks of the fruits formed now, for the next local update.
-  if (blocks != nullptr && blocks->block_size > 0.0) {
+  if (blocks != nullptr && blocks->points_in_blocks && blocks->block_size > 0.0) {
     const double inv = 1.0 / blocks->block_size;
     for (auto& t : next) {  // in a local update, the fruits around the changed blocks only
       std::unordered_set<std::uint64_t> keys;

@@ -16,6 +16,13 @@ void FruitSightingLog::addView(double time, const PointList& fruit_points) {
     const Point& p = fruit_points[i * n / keep];
     if (p.allFinite()) v.points.push_back(p);
   }
+  if (!v.points.empty()) {
+    v.lo = v.hi = v.points.front();
+    for (const auto& p : v.points) {
+      v.lo = v.lo.cwiseMin(p);
+      v.hi = v.hi.cwiseMax(p);
+    }
+  }
   pending_.push_back(std::move(v));
   // Fits may fall behind the views: the oldest unmatched views go first.
   while (pending_.size() > kept_views_) pending_.pop_front();
@@ -23,6 +30,9 @@ void FruitSightingLog::addView(double time, const PointList& fruit_points) {
 
 bool FruitSightingLog::saw(const View& view, const FruitEstimate& fruit) {
   const double reach = std::max({fruit.shape.a, fruit.shape.b, fruit.shape.c}) + 0.01;
+  if (view.points.empty() || !fruit.shape.t.allFinite() ||
+      ((fruit.shape.t.array() + reach) < view.lo.array()).any() || ((fruit.shape.t.array() - reach) > view.hi.array()).any())
+    return false;
   int near = 0;
   for (const auto& p : view.points) {
     if ((p - fruit.shape.t).squaredNorm() > reach * reach) continue;

@@ -11,7 +11,7 @@
 
 namespace fruit_shape_completion {
 
-std::vector<std::vector<int>> FruitShapePipeline::localClusters(const PointList& cloud, const SurfaceBlocks& blocks,
+std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlocks& blocks, PointList* sub,
                                                                 std::vector<Track>* untouched) {
   const double inv = 1.0 / blocks.block_size;
   std::unordered_map<std::uint64_t, GridCell> grown;  // the blocks formed again, by key
@@ -60,38 +60,39 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const PointList&
   every.min_size = 1;
   every.max_size = std::numeric_limits<int>::max();
   std::vector<std::vector<int>> found;
+  int skipped = 0;  // non-finite points of the last gathering
   for (;;) {
     if (touchTracks()) continue;
     const std::unordered_set<std::uint64_t> near = nearGrown();
-    std::vector<int> index;       // into cloud, ascending (the ranges are in the cloud's order)
-    std::vector<char> in_grown;   // per index
-    for (const auto& r : blocks.ranges) {
-      const std::uint64_t key = packCellKey(r.block);
+    std::vector<char> in_grown;  // per point of sub
+    sub->clear();
+    skipped = 0;
+    for (const auto& b : blocks.blocks) {
+      const std::uint64_t key = packCellKey(b.block);
       if (!near.count(key)) continue;
       const char g = grown.count(key) ? 1 : 0;
-      for (std::size_t i = r.begin; i < r.end; ++i) {
-        index.push_back(static_cast<int>(i));
+      for (const Point& p : b.points) {
+        if (!p.allFinite()) {
+          ++skipped;
+          continue;
+        }
+        sub->push_back(p);
         in_grown.push_back(g);
       }
     }
-    PointList sub;
-    sub.reserve(index.size());
-    for (int i : index) sub.push_back(cloud[static_cast<std::size_t>(i)]);
     found.clear();
     bool grew = false;
-    for (const auto& component : euclideanClusters(sub, every)) {
+    for (auto& component : euclideanClusters(*sub, every)) {
       bool reaches = false;
       for (int j : component) reaches = reaches || in_grown[static_cast<std::size_t>(j)];
       if (!reaches) continue;  // a cluster of the ring only: not changed (or cut off here)
       for (int j : component)
-        if (!in_grown[static_cast<std::size_t>(j)]) grew = grow(cellOf(sub[static_cast<std::size_t>(j)], inv)) || grew;
-      std::vector<int> points;
-      points.reserve(component.size());
-      for (int j : component) points.push_back(index[static_cast<std::size_t>(j)]);
-      found.push_back(std::move(points));
+        if (!in_grown[static_cast<std::size_t>(j)]) grew = grow(cellOf((*sub)[static_cast<std::size_t>(j)], inv)) || grew;
+      found.push_back(std::move(component));
     }
     if (!grew) break;
   }
+  stats_.non_finite_points += skipped;
   std::vector<std::vector<int>> clusters;
   for (auto& c : found)
     if (static_cast<int>(c.size()) >= params_.clustering.min_size && static_cast<int>(c.size()) <= params_.clustering.max_size)

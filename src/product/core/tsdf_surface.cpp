@@ -65,38 +65,36 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
   return out;
 }
 
-void IncrementalSurfaceExtractor::extract(const TsdfMap& map, PointList* cloud) {
+const SurfaceBlocks& IncrementalSurfaceExtractor::extractBlocks(const TsdfMap& map) {
   const bool fresh = map.epoch() != epoch_ || blocks_.empty();
   if (map.epoch() != epoch_) {
     blocks_.clear();
     epoch_ = map.epoch();
   }
-  // The blocks whose voxels may have changed; with projection, a surface point also reads the
-  // voxels next to it, so a changed block's neighbours are extracted again too.
+  // With projection, a surface point also reads the voxels next to it, so a changed block's
+  // neighbours are extracted again too; without, a block's own revision tells (below).
   std::unordered_map<std::uint64_t, char> changed;
-  map.forEachBlock([&](const TsdfBlock& block) {
-    const GridCell b = blockCoordsOf(map, block);
-    const auto it = blocks_.find(packCellKey(b));
-    if (it != blocks_.end() && it->second.revision == block.revision) return;
-    if (!params_.project_to_zero_crossing) {
-      changed[packCellKey(b)] = 1;
-      return;
-    }
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) changed[packCellKey(b + GridCell(dx, dy, dz))] = 1;
-  });
+  if (params_.project_to_zero_crossing) {
+    map.forEachBlock([&](const TsdfBlock& block) {
+      const GridCell b = blockCoordsOf(map, block);
+      const auto it = blocks_.find(packCellKey(b));
+      if (it != blocks_.end() && it->second.revision == block.revision) return;
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) changed[packCellKey(b + GridCell(dx, dy, dz))] = 1;
+    });
+  }
   // The cache is updated in place: a view changes a few blocks of a map that only grows (blocks
   // go only when the map is cleared or loaded, which changes its epoch).
-  PointList& out = *cloud;
-  out.clear();
-  // With room to grow: a map grows by a few points a view, and each reallocation faults in
-  // the whole cloud anew.
-  if (out.capacity() < last_total_) out.reserve(last_total_ + last_total_ / 4);
   last_extracted_ = 0;
-  last_blocks_ = SurfaceBlocks();
-  last_blocks_.block_size = map.voxelsPerSide() * map.voxelSize();
-  last_blocks_.all_changed = fresh;
+  SurfaceBlocks& out = last_blocks_;
+  const std::size_t before = out.blocks.size();
+  out.blocks.clear();
+  out.blocks.reserve(before + before / 8 + 16);
+  out.changed.clear();
+  out.block_size = map.voxelsPerSide() * map.voxelSize();
+  out.all_changed = fresh;
+  out.points_in_blocks = !params_.project_to_zero_crossing;
   std::size_t present = 0;
   map.forEachBlock([&](const TsdfBlock& block) {
     const GridCell b = blockCoordsOf(map, block);
@@ -104,16 +102,18 @@ void IncrementalSurfaceExtractor::extract(const TsdfMap& map, PointList* cloud) 
     const auto [it, inserted] = blocks_.try_emplace(key);
     CachedBlock& entry = it->second;
     ++present;
-    if (inserted || changed.count(key)) {
+    const bool stale = params_.project_to_zero_crossing ? changed.count(key) > 0 : entry.revision != block.revision;
+    if (inserted || stale) {
       PointList points;
       appendBlockSurface(map, block, params_, &points);
       ++last_extracted_;
-      if (points != entry.points) last_blocks_.changed.push_back(b);
-      entry.points = std::move(points);
+      if (points != entry.points.get()) {
+        out.changed.push_back(b);
+        entry.points = std::move(points);
+      }
     }
     entry.revision = block.revision;
-    if (!entry.points.empty()) last_blocks_.ranges.push_back({b, out.size(), out.size() + entry.points.size()});
-    out.insert(out.end(), entry.points.begin(), entry.points.end());
+    if (!entry.points.empty()) out.blocks.push_back({b, entry.points});
   });
   if (blocks_.size() != present) {  // blocks went without a new epoch: their points went too
     std::unordered_map<std::uint64_t, char> in_map;
@@ -123,12 +123,11 @@ void IncrementalSurfaceExtractor::extract(const TsdfMap& map, PointList* cloud) 
         ++it;
         continue;
       }
-      if (!it->second.points.empty())
-        last_blocks_.changed.push_back(cellOf(it->second.points.front(), 1.0 / last_blocks_.block_size));
+      if (!it->second.points.empty()) out.changed.push_back(cellOf(it->second.points.front(), 1.0 / out.block_size));
       it = blocks_.erase(it);
     }
   }
-  last_total_ = out.size();
+  return out;
 }
 
 TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {

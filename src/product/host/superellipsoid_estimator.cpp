@@ -140,24 +140,20 @@ void SuperellipsoidEstimator::update() {
       live_pending_ = false;
     }
   }
-  // Into the cloud before last, reusing its memory (surface_ keeps the last one for queries).
-  PointList& surface = spare_surface_;
-  SurfaceBlocks blocks;
+  SurfaceBlocks surface;  // its blocks' points shared with the extractor, not copied
   double surface_seconds = 0.0;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
     if (!dirty_) return;
     const auto start = std::chrono::steady_clock::now();
-    surface_extractor_.extract(map_, &surface);
-    blocks = surface_extractor_.lastBlocks();
+    surface = surface_extractor_.extractBlocks(map_);
     surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     dirty_ = false;
   }
-  // The fit runs on the surface copy, with the map free for new views and the last results
+  // The fit runs on the surface snapshot, with the map free for new views and the last results
   // free for queries.
   if (cancel_) return;
-  // Projected points may leave their blocks: then the whole surface is clustered each time.
-  pipeline_.update(surface, &cancel_, params_.surface.project_to_zero_crossing ? nullptr : &blocks);
+  pipeline_.update(surface, &cancel_);
   if (cancel_) return;  // a reset is waiting (or the estimator is going): store nothing
   std::vector<FruitEstimate> accepted, rejected;
   for (auto& f : pipeline_.takeFruits()) (f.accepted ? accepted : rejected).push_back(std::move(f));
@@ -170,7 +166,7 @@ void SuperellipsoidEstimator::update() {
   std::lock_guard<std::mutex> lock(results_mutex_);
   accepted_ = std::make_shared<const std::vector<FruitEstimate>>(std::move(accepted));
   rejected_ = std::move(rejected);
-  surface_.swap(surface);
+  surface_ = std::move(surface);
   targets_ = std::make_shared<const ShapeTargets>(std::move(targets));
   stats_ = pipeline_.lastStats();
   surface_seconds_ = surface_seconds;
@@ -211,8 +207,7 @@ void SuperellipsoidEstimator::reset() {
   dirty_ = false;
   accepted_ = std::make_shared<const std::vector<FruitEstimate>>();
   rejected_.clear();
-  surface_.clear();
-  spare_surface_ = PointList();
+  surface_ = SurfaceBlocks();
   targets_ = std::make_shared<const ShapeTargets>();
   stats_ = PipelineStats();
   std::lock_guard<std::mutex> sightings_lock(sightings_mutex_);
@@ -279,8 +274,12 @@ std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
 }
 
 PointList SuperellipsoidEstimator::surface() const {
-  std::lock_guard<std::mutex> lock(results_mutex_);
-  return surface_;
+  SurfaceBlocks blocks;
+  {
+    std::lock_guard<std::mutex> lock(results_mutex_);
+    blocks = surface_;  // shares the points; concatenated outside the lock
+  }
+  return blocks.cloud();
 }
 
 FruitInput SuperellipsoidEstimator::lastInput() const {
