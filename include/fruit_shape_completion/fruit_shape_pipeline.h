@@ -40,6 +40,9 @@ struct PipelineParams {
   // before are split again along their previous fits, each part kept or refitted the same way.
   // 0: refit every change, and split from scratch.
   double refit_tolerance = 0.1;
+  // The changed clusters of an update are fitted on up to this many threads (1: in the
+  // caller's). The fruits are the same whatever the number.
+  int threads = 2;
   FitParams fit;
   MissingSurfaceParams missing;
   // Throws std::invalid_argument naming the first bad value.
@@ -106,19 +109,25 @@ class FruitShapePipeline {
   // by this share: more of the fruit seen may tell otherwise.
   static constexpr double kRecheckGrowth = 0.25;
 
+  // The fit functions below may run on several threads at once (one cluster each): they read
+  // tracks_ and params_ and count into their own `stats`.
   // The points' surface normals (estimateNormals, oriented toward their centroid).
-  std::vector<Eigen::Vector3d> normalsOf(const PointList& points);
+  std::vector<Eigen::Vector3d> normalsOf(const PointList& points, PipelineStats* stats) const;
   // One fit of a cluster (or part) with its points' normals.
   FruitEstimate estimateCluster(const PointList& points, const std::vector<Eigen::Vector3d>& normals, int id,
-                                const Track* previous);
+                                const Track* previous, PipelineStats* stats) const;
+  // A changed cluster's fruits: split as before, or fitted (and split if it must be), each
+  // with its unseen surface.
+  std::vector<Track> fitChangedCluster(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
+                                       const std::vector<char>& reused, PipelineStats* stats) const;
   // The cluster as one fruit, or, if no superellipsoid fits it, split into parts that fit.
   // `cells`: the points' occupied 1 cm cells if the caller has them.
   // `fitted_whole`: the cluster's whole fit if the caller has it.
   // `split_rough`: an accepted fit above split_rms is tried split too (small touching fruits
   // fitted as one); the parts of a split are not (one cut separates such a pair).
   Parts estimateWithSplit(const PointList& points, const std::vector<Eigen::Vector3d>& normals, int depth,
-                          const std::unordered_set<std::uint64_t>* cells = nullptr,
-                          const FruitEstimate* fitted_whole = nullptr, bool split_rough = false);
+                          PipelineStats* stats, const std::unordered_set<std::uint64_t>* cells = nullptr,
+                          const FruitEstimate* fitted_whole = nullptr, bool split_rough = false) const;
   // A changed cluster that covers exactly the parts of one earlier split, all accepted: its
   // points go to the part whose fit explains them better, and each part keeps its fit (see
   // refit_tolerance) or is refitted from it. Once the cluster has grown by a quarter since the
@@ -127,13 +136,13 @@ class FruitShapePipeline {
   // The cluster's normals and whole fit, if computed on the way, go to `normals` and `whole`.
   std::vector<Track> splitAsBefore(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
                                    const std::vector<char>& reused, std::vector<Eigen::Vector3d>* normals,
-                                   std::optional<FruitEstimate>* whole);
+                                   std::optional<FruitEstimate>* whole, PipelineStats* stats) const;
   // Whether `fit`, made on `fitted_points` points, still explains `points` (refit_tolerance).
   bool stillFits(const FruitEstimate& fit, std::size_t fitted_points, const PointList& points) const;
   // `fit` for the cluster (part) `points`, described anew.
-  FruitEstimate keptEstimate(const FruitEstimate& fit, const PointList& points);
+  static FruitEstimate keptEstimate(const FruitEstimate& fit, const PointList& points);
   // The predicted unseen surface of an accepted fruit (none otherwise).
-  void predictMissing(FruitEstimate* estimate);
+  void predictMissing(FruitEstimate* estimate, PipelineStats* stats) const;
   int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
   // The occupied 1 cm cells of the points (how clusters are matched between updates).
   static std::unordered_set<std::uint64_t> occupiedCells(const PointList& points);

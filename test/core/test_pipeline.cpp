@@ -1,8 +1,11 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/parallel_jobs.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <stdexcept>
 #include <fstream>
 #include <limits>
 #include <utility>
@@ -242,6 +245,9 @@ TEST(FruitShapePipeline, InvalidParametersAreRefused) {
   p = PipelineParams();
   p.missing.threshold = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
+  p = PipelineParams();
+  p.threads = 0;
+  EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
 }
 
 TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) {
@@ -391,4 +397,72 @@ TEST(FruitShapePipeline, ATouchingPairStaysSplitWhenTheHalfSeenNeighboursFitBulg
   ASSERT_TRUE(f->accepted) << f->reason;
   EXPECT_LT((f->center() - center).norm(), 0.003);
   EXPECT_NEAR(f->volume, true_volume, 0.1 * true_volume);
+}
+
+// The changed clusters are fitted on several threads: the fruits are exactly those of one
+// thread, view after view (new fruits, fruits seen more, a touching pair split and split again).
+TEST(FruitShapePipeline, FitsOnSeveralThreadsGiveTheFruitsOfOne) {
+  std::vector<Superellipsoid> truth;
+  for (int i = 0; i < 6; ++i) truth.push_back(fruitAt(Eigen::Vector3d(0.15 * i, 0.05 * (i % 2), 0.6), 40 + i));
+  const auto pair = touchingPair();
+  PipelineParams one_thread;
+  one_thread.threads = 1;
+  PipelineParams four = one_thread;
+  four.threads = 4;
+  FruitShapePipeline serial(one_thread), parallel(four);
+  int splits = 0;
+  for (int view = 0; view < 4; ++view) {
+    PointList cloud = scanPair(pair, 0.5 + 0.15 * view, 60 + view, 70 + view);
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      const PointList pts = scan(truth[i], 0.4 + 0.2 * view, Eigen::Vector3d(0.3 * view, 1, 0), 100 * view + i);
+      cloud.insert(cloud.end(), pts.begin(), pts.end());
+    }
+    const auto& a = serial.update(cloud);
+    const auto& b = parallel.update(cloud);
+    EXPECT_GE(parallel.lastStats().fitted, view == 0 ? 8 : 1);
+    EXPECT_EQ(parallel.lastStats().fitted, serial.lastStats().fitted);
+    EXPECT_EQ(parallel.lastStats().splits, serial.lastStats().splits);
+    splits += parallel.lastStats().splits;
+    ASSERT_EQ(a.size(), b.size()) << "view " << view;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].id, b[i].id);
+      EXPECT_EQ(a[i].accepted, b[i].accepted);
+      EXPECT_EQ(a[i].volume, b[i].volume) << "view " << view << ", fruit " << i;
+      EXPECT_EQ(a[i].center(), b[i].center());
+      EXPECT_EQ(a[i].missing_surface.size(), b[i].missing_surface.size());
+    }
+  }
+  int accepted = 0;
+  for (const auto& f : parallel.fruits()) accepted += f.accepted;
+  EXPECT_EQ(accepted, 8);
+  EXPECT_GE(splits, 1);  // the touching pair
+}
+
+TEST(ParallelJobs, EachJobRunsOnceAndAFailureOrACancelStopsTheRest) {
+  std::vector<std::atomic<int>> runs(200);
+  runParallelJobs(runs.size(), 3, [&](std::size_t i) { ++runs[i]; });
+  for (const auto& r : runs) EXPECT_EQ(r.load(), 1);
+
+  auto failAt3 = [](std::atomic<int>* started) {
+    return [started](std::size_t i) {
+      ++*started;
+      if (i == 3) throw std::runtime_error("job 3");
+    };
+  };
+  std::atomic<int> started{0};
+  EXPECT_THROW(runParallelJobs(1000, 2, failAt3(&started)), std::runtime_error);
+  started = 0;
+  EXPECT_THROW(runParallelJobs(1000, 1, failAt3(&started)), std::runtime_error);
+  EXPECT_EQ(started.load(), 4);  // in order on one thread: none after the failure
+
+  std::atomic<bool> cancel{false};
+  int done = 0;
+  runParallelJobs(
+      50, 1,
+      [&](std::size_t i) {
+        ++done;
+        if (i == 9) cancel = true;
+      },
+      &cancel);
+  EXPECT_EQ(done, 10);  // in order on one thread: the rest were skipped
 }

@@ -1,6 +1,7 @@
 #include <fruit_shape_completion/fruit_center.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/grid_cell.h>
+#include <fruit_shape_completion/parallel_jobs.h>
 #include <fruit_shape_completion/shape_targets.h>
 #include <fruit_shape_completion/volume_interval.h>
 
@@ -85,6 +86,7 @@ void PipelineParams::validate() const {
   if (!(center_lambda >= 0.0) || !std::isfinite(center_lambda))
     throw std::invalid_argument("center lambda must be a finite value >= 0");
   if (missing.samples < 0) throw std::invalid_argument("missing-surface samples must be >= 0");
+  if (threads < 1 || threads > 64) throw std::invalid_argument("fit threads must be in [1, 64]");
   if (!(refit_tolerance >= 0.0) || !std::isfinite(refit_tolerance))
     throw std::invalid_argument("refit tolerance must be a finite value >= 0");
   if (!(missing.threshold > 0.0) || !std::isfinite(missing.threshold))
@@ -109,17 +111,17 @@ void FruitShapePipeline::reset() {
   next_id_ = 0;
 }
 
-std::vector<Eigen::Vector3d> FruitShapePipeline::normalsOf(const PointList& points) {
+std::vector<Eigen::Vector3d> FruitShapePipeline::normalsOf(const PointList& points, PipelineStats* stats) const {
   const auto start = std::chrono::steady_clock::now();
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const auto& p : points) centroid += p / static_cast<double>(points.size());
   std::vector<Eigen::Vector3d> normals = estimateNormals(points, params_.normals, centroid).normals;
-  stats_.prior_seconds += secondsSince(start);
+  stats->prior_seconds += secondsSince(start);
   return normals;
 }
 
 FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
-                                                  int id, const Track* previous) {
+                                                  int id, const Track* previous, PipelineStats* stats) const {
   FruitEstimate est;
   est.id = id;
   est.refitted = true;
@@ -133,7 +135,7 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const
     return est;
   }
   est.center_prior = estimateFruitCenter(points, normals, params_.center_lambda);
-  stats_.prior_seconds += secondsSince(prior_start);
+  stats->prior_seconds += secondsSince(prior_start);
   const Superellipsoid* warm =
       previous != nullptr && previous->estimate.accepted ? &previous->estimate.shape : nullptr;
   const FitResult fit = fitSuperellipsoid(points, est.center_prior, params_.fit, warm);
@@ -144,7 +146,7 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const
   est.rms = fit.rms;
   est.iterations = fit.iterations;
   est.fit_seconds = fit.seconds;
-  stats_.fit_seconds += fit.seconds;
+  stats->fit_seconds += fit.seconds;
   est.volume = fit.shape.volume();
   return est;
 }
@@ -195,7 +197,7 @@ FruitEstimate FruitShapePipeline::keptEstimate(const FruitEstimate& fit, const P
   return e;
 }
 
-void FruitShapePipeline::predictMissing(FruitEstimate* e) {
+void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) const {
   e->missing_surface.clear();
   e->missing_normals.clear();
   if (!e->accepted || params_.missing.samples <= 0) return;
@@ -212,7 +214,38 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e) {
   const VolumeInterval ci = volumeInterval90(e->volume, seenCoverage(*e, params_.missing.samples), e->rms, at_bound);
   e->volume_lo = ci.lo;
   e->volume_hi = ci.hi;
-  stats_.missing_seconds += secondsSince(start);
+  stats->missing_seconds += secondsSince(start);
+}
+
+std::vector<FruitShapePipeline::Track> FruitShapePipeline::fitChangedCluster(
+    const PointList& pts, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused,
+    PipelineStats* stats) const {
+  std::vector<Eigen::Vector3d> normals;
+  std::optional<FruitEstimate> whole;  // fitted on the way, if so
+  std::vector<Track> out =
+      params_.refit_tolerance > 0.0 ? splitAsBefore(pts, cells, reused, &normals, &whole, stats) : std::vector<Track>();
+  if (out.empty()) {
+    if (normals.empty()) normals = normalsOf(pts, stats);
+    // A fruit whose rough fit was tried split before and stayed whole is not tried again until
+    // its cluster has grown: the same split would be refused again.
+    const int previous = bestOverlap(cells);
+    const std::size_t checked = previous >= 0 ? tracks_[static_cast<std::size_t>(previous)].rough_checked_points : 0;
+    const bool split_rough = static_cast<double>(pts.size()) > (1.0 + kRecheckGrowth) * static_cast<double>(checked);
+    Parts parts = estimateWithSplit(pts, normals, 0, stats, &cells, whole ? &*whole : nullptr, split_rough);
+    for (auto& part : parts) {
+      Track t;
+      if (parts.size() == 1 && part.second.accepted && part.second.rms > params_.split_rms)
+        t.rough_checked_points = split_rough ? pts.size() : checked;
+      t.estimate = std::move(part.second);
+      t.fitted_points = part.first.size();
+      t.cells = part.first.size() == pts.size() ? cells : occupiedCells(part.first);  // unsplit: the cluster's own cells
+      t.split_points = parts.size() > 1 ? pts.size() : 0;
+      out.push_back(std::move(t));
+    }
+  }
+  // Unseen surfaces of the final fruits only (not of trial fits).
+  for (auto& t : out) predictMissing(&t.estimate, stats);
+  return out;
 }
 
 const std::vector<FruitEstimate>& FruitShapePipeline::update(const PointList& surface_cloud,
@@ -271,6 +304,12 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
   std::vector<Track> next;      // fruits carried over unchanged
   std::vector<Track> pending;   // fruits fitted now, ids still to assign
   std::vector<char> reused(tracks_.size(), 0);
+  struct FitJob {
+    PointList points;
+    std::uint64_t signature;
+    std::unordered_set<std::uint64_t> cells;
+  };
+  std::vector<FitJob> jobs;  // changed clusters no previous fit explains
   for (const auto& cluster : clusters) {
     if (cancel && cancel->load()) return abandon();
     PointList pts;
@@ -287,7 +326,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
         unchanged = true;
       }
     if (unchanged) continue;
-    const std::unordered_set<std::uint64_t> cells = occupiedCells(pts);
+    std::unordered_set<std::uint64_t> cells = occupiedCells(pts);
     const int kept = params_.refit_tolerance > 0.0 ? stillExplainedBy(pts, cells, reused) : -1;
     if (kept >= 0) {
       // The same fruit seen again: new points, the old fit, its unseen surface recomputed.
@@ -298,46 +337,35 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
       t.cluster_points = pts.size();
       t.cells = cells;
       t.split_points = 0;  // a cluster of its own now
-      predictMissing(&t.estimate);
+      predictMissing(&t.estimate, &stats_);
       next.push_back(std::move(t));
       ++stats_.kept;
       continue;
     }
-    std::vector<Eigen::Vector3d> normals;
-    std::optional<FruitEstimate> whole;  // fitted on the way, if so
-    std::vector<Track> again =
-        params_.refit_tolerance > 0.0 ? splitAsBefore(pts, cells, reused, &normals, &whole) : std::vector<Track>();
-    if (!again.empty()) {
-      for (auto& t : again) {
-        t.cluster_signature = signature;
-        t.cluster_points = pts.size();
-        pending.push_back(std::move(t));
-      }
-      continue;
-    }
-    if (normals.empty()) normals = normalsOf(pts);
-    // A fruit whose rough fit was tried split before and stayed whole is not tried again until
-    // its cluster has grown: the same split would be refused again.
-    const int previous = bestOverlap(cells);
-    const std::size_t checked = previous >= 0 ? tracks_[static_cast<std::size_t>(previous)].rough_checked_points : 0;
-    const bool split_rough = static_cast<double>(pts.size()) > (1.0 + kRecheckGrowth) * static_cast<double>(checked);
-    Parts parts = estimateWithSplit(pts, normals, 0, &cells, whole ? &*whole : nullptr, split_rough);
-    for (auto& part : parts) {
-      Track t;
-      if (parts.size() == 1 && part.second.accepted && part.second.rms > params_.split_rms)
-        t.rough_checked_points = split_rough ? pts.size() : checked;
-      t.estimate = std::move(part.second);
-      t.cluster_signature = signature;
-      t.cluster_points = pts.size();
-      t.fitted_points = part.first.size();
-      t.cells = part.first.size() == pts.size() ? cells : occupiedCells(part.first);  // unsplit: the cluster's own cells
-      t.split_points = parts.size() > 1 ? pts.size() : 0;
+    jobs.push_back({std::move(pts), signature, std::move(cells)});
+  }
+  // The changed clusters' fits, independent of one another; their fruits join in cluster order.
+  std::vector<std::vector<Track>> fitted(jobs.size());
+  std::vector<PipelineStats> job_stats(jobs.size());
+  runParallelJobs(
+      jobs.size(), params_.threads,
+      [&](std::size_t j) { fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]); },
+      cancel);
+  if (cancel && cancel->load()) return abandon();
+  for (std::size_t j = 0; j < jobs.size(); ++j) {
+    for (auto& t : fitted[j]) {
+      t.cluster_signature = jobs[j].signature;
+      t.cluster_points = jobs[j].points.size();
       pending.push_back(std::move(t));
     }
+    const PipelineStats& js = job_stats[j];
+    stats_.fitted += js.fitted;
+    stats_.kept += js.kept;
+    stats_.splits += js.splits;
+    stats_.prior_seconds += js.prior_seconds;
+    stats_.fit_seconds += js.fit_seconds;
+    stats_.missing_seconds += js.missing_seconds;
   }
-
-  // Unseen surfaces of the final fruits only (not of trial fits).
-  for (auto& t : pending) predictMissing(&t.estimate);
 
   // Ids: fitted fruits inherit the id of the previous fruit they share most 1 cm cells with,
   // largest overlap first, one to one; the rest get new ids.

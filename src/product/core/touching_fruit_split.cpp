@@ -38,7 +38,7 @@ constexpr double kOverlapGain = 0.5;
 
 std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused,
-    std::vector<Eigen::Vector3d>* normals_out, std::optional<FruitEstimate>* whole_out) {
+    std::vector<Eigen::Vector3d>* normals_out, std::optional<FruitEstimate>* whole_out, PipelineStats* stats) const {
   // The previous fruits the cluster shares cells with: all parts of one split, all accepted.
   std::vector<int> parts;
   for (std::size_t k = 0; k < tracks_.size(); ++k)
@@ -66,9 +66,9 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
   const bool recheck =
       static_cast<double>(points.size()) > (1.0 + kRecheckGrowth) * static_cast<double>(first.split_points);
   if (recheck) {
-    normals = normalsOf(points);
-    *whole_out = estimateCluster(points, normals, -1, &tracks_[static_cast<std::size_t>(bestOverlap(cells))]);
-    ++stats_.fitted;
+    normals = normalsOf(points, stats);
+    *whole_out = estimateCluster(points, normals, -1, &tracks_[static_cast<std::size_t>(bestOverlap(cells))], stats);
+    ++stats->fitted;
     if ((*whole_out)->accepted && (*whole_out)->rms <= params_.split_rms) {
       Track whole;
       whole.estimate = **whole_out;
@@ -102,12 +102,12 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
       t.fitted_points = previous.fitted_points;
       ++kept;
     } else {
-      if (normals.empty()) normals = normalsOf(points);
+      if (normals.empty()) normals = normalsOf(points, stats);
       std::vector<Eigen::Vector3d> part_normals;
       for (std::size_t i = 0; i < points.size(); ++i)
         if (label[i] == j) part_normals.push_back(normals[i]);
-      t.estimate = estimateCluster(pts, part_normals, -1, &previous);
-      ++stats_.fitted;
+      t.estimate = estimateCluster(pts, part_normals, -1, &previous, stats);
+      ++stats->fitted;
       if (!t.estimate.accepted) return {};
       t.fitted_points = pts.size();
     }
@@ -116,22 +116,23 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
   std::vector<const Superellipsoid*> fits;
   for (const Track& t : out) fits.push_back(&t.estimate.shape);
   if (anyTwoOneFruit(fits)) return {};
-  stats_.kept += kept;
-  ++stats_.splits;
+  stats->kept += kept;
+  ++stats->splits;
   return out;
 }
 
 FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList& points,
                                                                 const std::vector<Eigen::Vector3d>& normals, int depth,
+                                                                PipelineStats* stats,
                                                                 const std::unordered_set<std::uint64_t>* cells,
-                                                                const FruitEstimate* fitted_whole, bool split_rough) {
+                                                                const FruitEstimate* fitted_whole, bool split_rough) const {
   FruitEstimate whole;
   if (fitted_whole != nullptr) {
     whole = *fitted_whole;
   } else {
     const int warm = bestOverlap(cells ? *cells : occupiedCells(points));
-    whole = estimateCluster(points, normals, -1, warm >= 0 ? &tracks_[warm] : nullptr);
-    ++stats_.fitted;
+    whole = estimateCluster(points, normals, -1, warm >= 0 ? &tracks_[warm] : nullptr, stats);
+    ++stats->fitted;
   }
   Parts out;
   const int min_part = params_.clustering.min_size;
@@ -190,9 +191,9 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
     const int k = bestOverlap(occupiedCells(half));
     return k >= 0 ? &tracks_[k] : nullptr;
   };
-  FruitEstimate first[2] = {estimateCluster(part[0], part_normals[0], -1, previousOf(part[0])),
-                            estimateCluster(part[1], part_normals[1], -1, previousOf(part[1]))};
-  stats_.fitted += 2;
+  FruitEstimate first[2] = {estimateCluster(part[0], part_normals[0], -1, previousOf(part[0]), stats),
+                            estimateCluster(part[1], part_normals[1], -1, previousOf(part[1]), stats)};
+  stats->fitted += 2;
   const std::size_t half_points[2] = {part[0].size(), part[1].size()};
   if (first[0].converged && first[1].converged) {
     const Eigen::VectorXd d0 = radialDistances(points, first[0].shape);
@@ -211,7 +212,7 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
       parts.back().second.refitted = true;
       continue;
     }
-    auto sub = estimateWithSplit(part[k], part_normals[k], depth + 1);
+    auto sub = estimateWithSplit(part[k], part_normals[k], depth + 1, stats);
     parts.insert(parts.end(), sub.begin(), sub.end());
   }
   double squares = 0.0;
@@ -240,7 +241,7 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
     out.emplace_back(points, whole);
     return out;
   }
-  ++stats_.splits;
+  ++stats->splits;
   return parts;
 }
 

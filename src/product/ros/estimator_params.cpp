@@ -106,6 +106,7 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("normal_radius", p.pipeline.normals.radius);
   read("center_lambda", p.pipeline.center_lambda);
   read("refit_tolerance", p.pipeline.refit_tolerance);
+  read("fit_threads", p.pipeline.threads);
   read("alpha", p.pipeline.fit.alpha);
   read("gamma", p.pipeline.fit.gamma);
   read("min_axis", p.pipeline.fit.min_axis);
