@@ -262,7 +262,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
                                                           const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
   stats_ = PipelineStats();
-  if (blocks != nullptr)
+  if (blocks != nullptr && blocks->points_in_blocks)  // else never local: nothing to remember
     pending_changed_.insert(pending_changed_.end(), blocks->changed.begin(), blocks->changed.end());
   // Around the changed blocks only, when the tracks know their blocks of this size.
   const bool local = blocks != nullptr && local_ready_ && !blocks->all_changed && blocks->points_in_blocks &&
@@ -347,10 +347,16 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
   // The changed clusters' fits, independent of one another; their fruits join in cluster order.
   std::vector<std::vector<Track>> fitted(jobs.size());
   std::vector<PipelineStats> job_stats(jobs.size());
-  runParallelJobs(
-      jobs.size(), params_.threads,
-      [&](std::size_t j) { fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]); },
-      cancel);
+  try {
+    runParallelJobs(
+        jobs.size(), params_.threads,
+        [&](std::size_t j) { fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]); },
+        cancel);
+  } catch (...) {  // out of memory, say: the fruits stay as they were, all clustered next time
+    abandon();
+    local_ready_ = false;
+    throw;
+  }
   if (cancel && cancel->load()) return abandon();
   for (std::size_t j = 0; j < jobs.size(); ++j) {
     for (auto& t : fitted[j]) {
