@@ -4,7 +4,7 @@
 #   asan: AddressSanitizer + UndefinedBehaviorSanitizer over core, sim and planner tests
 #   tsan: ThreadSanitizer over the tests with threads (TSDF neighbour pass and ray casting, one
 #         integrator called from two threads, estimator shared by a view thread and a query
-#         thread, 2-thread renderer in planner episodes)
+#         thread, 2-thread renderer in planner episodes, the pipeline's parallel fits)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 KIND="${1:-}"
@@ -12,7 +12,7 @@ case "$KIND" in
   asan) FLAGS="-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
         TESTS="test_superellipsoid test_clusters test_fit test_pipeline test_cloud_io test_tsdf test_sim test_planner" ;;
   tsan) FLAGS="-fsanitize=thread"
-        TESTS="test_tsdf test_planner" ;;
+        TESTS="test_tsdf test_planner test_pipeline" ;;
   *) echo "usage: scripts/sanitize.sh asan|tsan" >&2; exit 2 ;;
 esac
 "$ROOT/scripts/setup.sh"

@@ -45,8 +45,16 @@ Eigen::Vector3d Superellipsoid::surfacePointLocal(const Eigen::Vector3d& u) cons
   return u * std::pow(implicitLocal(u), -e1 / 2.0);
 }
 
+namespace {
+
+// B(x, y) from tgamma: std::beta goes through lgamma, which writes the global signgam, a data
+// race when fits run on several threads. The arguments here are small, far from overflow.
+double betaFunction(double x, double y) { return std::tgamma(x) * std::tgamma(y) / std::tgamma(x + y); }
+
+}  // namespace
+
 double Superellipsoid::volume() const {
-  return 2.0 * a * b * c * e1 * e2 * std::beta(e1 / 2.0 + 1.0, e1) * std::beta(e2 / 2.0, e2 / 2.0);
+  return 2.0 * a * b * c * e1 * e2 * betaFunction(e1 / 2.0 + 1.0, e1) * betaFunction(e2 / 2.0, e2 / 2.0);
 }
 
 PointList Superellipsoid::sampleSurface(int n) const {
