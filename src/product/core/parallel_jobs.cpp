@@ -1,9 +1,5 @@
 #include <fruit_shape_completion/parallel_jobs.h>
 
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <exception>
 #include <mutex>
@@ -11,10 +7,6 @@
 #include <vector>
 
 namespace fruit_shape_completion {
-
-namespace {
-constexpr int kHelperNice = 10;  // a tenth of a normal thread's share of a busy core
-}  // namespace
 
 void runParallelJobs(std::size_t n, int threads, const std::function<void(std::size_t)>& job,
                      const std::atomic<bool>* cancel) {
@@ -36,14 +28,6 @@ void runParallelJobs(std::size_t n, int threads, const std::function<void(std::s
       }
     }
   };
-  // Helpers yield to every other thread of normal priority: they take an idle core, but never
-  // slow the threads a planner waits on (its view insertion, its planning).
-  auto helper = [&]() {
-#ifdef __linux__
-    setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), kHelperNice);
-#endif
-    work();
-  };
   const std::size_t helpers = std::min<std::size_t>(n, static_cast<std::size_t>(std::max(1, threads))) - (n > 0 ? 1 : 0);
   std::vector<std::thread> pool;
   struct Joiner {  // the helpers are joined however this function is left
@@ -55,7 +39,7 @@ void runParallelJobs(std::size_t n, int threads, const std::function<void(std::s
   } joiner{pool};
   try {
     pool.reserve(helpers);
-    for (std::size_t t = 0; t < helpers; ++t) pool.emplace_back(helper);
+    for (std::size_t t = 0; t < helpers; ++t) pool.emplace_back(work);
   } catch (...) {
     // No (further) thread to be had: the caller's does the rest of the work.
   }
