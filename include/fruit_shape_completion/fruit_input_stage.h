@@ -82,6 +82,7 @@ class FruitInputStage {
   // Drops the outliers of out->fruit (if enabled) and counts them.
   void removeOutliers(FruitInput* out) const;
   FruitInputParams params_;
+  TabulatedRedTest red_;  // params_.red_test
 };
 
 }  // namespace fruit_shape_completion

@@ -111,6 +111,32 @@ TEST(HsiRedTest, AgreesWithPclsPackedHsiComparisonAsPointcloudRoiSetsItUp) {
   EXPECT_EQ(disagree, 0u);
 }
 
+// The tabulated hue band is the computed one, colour for colour: all 2^24 colours, for the
+// default band, a wide one (past a quarter turn: the hx <= 0 half counts) and a narrow one.
+TEST(HsiRedTest, TheTabulatedTestAgreesWithTheComputedOneOnEveryColour) {
+  HsiRedTest wide, narrow;
+  wide.min_hue = -100;
+  wide.max_hue = 127;
+  wide.min_saturation = 10;
+  narrow.min_hue = 3;
+  narrow.max_hue = 9;
+  narrow.min_intensity = 60;
+  for (const HsiRedTest& test : {HsiRedTest(), wide, narrow}) {
+    const TabulatedRedTest table(test);
+    std::size_t red = 0, disagree = 0;
+    for (int r = 0; r < 256; ++r)
+      for (int g = 0; g < 256; ++g)
+        for (int b = 0; b < 256; ++b) {
+          const auto R = static_cast<std::uint8_t>(r), G = static_cast<std::uint8_t>(g), B = static_cast<std::uint8_t>(b);
+          const bool computed = test.isRed(R, G, B);
+          red += computed;
+          disagree += computed != table.isRed(R, G, B);
+        }
+    EXPECT_GT(red, 10000u) << test.min_hue << " .. " << test.max_hue;
+    EXPECT_EQ(disagree, 0u) << test.min_hue << " .. " << test.max_hue;
+  }
+}
+
 TEST(FruitInputStage, DropsTheBlurredSkirtOfAFruitAndKeepsItsSurface) {
   const SphereFrame s;
   const Eigen::Isometry3d pose = somePose();

@@ -27,7 +27,9 @@ void FruitInputParams::validate() const {
     throw std::invalid_argument("veil_min_gap must be in [0, veil_radius)");
 }
 
-FruitInputStage::FruitInputStage(const FruitInputParams& params) : params_(params) { params_.validate(); }
+FruitInputStage::FruitInputStage(const FruitInputParams& params) : params_(params), red_(params.red_test) {
+  params_.validate();
+}
 
 void FruitInputStage::removeOutliers(FruitInput* out) const {
   // The statistic needs more points than neighbours; a handful of fruit points stays as it is.
@@ -57,7 +59,7 @@ FruitInput FruitInputStage::processFrame(const OrganizedFrame& frame, const Eige
     if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
     ++out.points;
     const std::uint8_t* c = &frame.rgb[3 * px];
-    const bool fruit = external_mask ? (*external_mask)[px] != 0 : params_.red_test.isRed(c[0], c[1], c[2]);
+    const bool fruit = external_mask ? (*external_mask)[px] != 0 : red_.isRed(c[0], c[1], c[2]);
     out.mask[px] = fruit ? 1 : 0;
     out.masked += fruit ? 1 : 0;
     if (full_cloud) out.full.push_back(camera_to_map * Eigen::Vector3d(p[0], p[1], p[2]));
