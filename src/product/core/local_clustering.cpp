@@ -59,36 +59,47 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
   ClusteringParams every = params_.clustering;  // all components: a truncated one may be small
   every.min_size = 1;
   every.max_size = std::numeric_limits<int>::max();
-  std::vector<std::vector<int>> found;
+  std::vector<std::vector<int>> found, components;
+  std::vector<std::uint64_t> gathered, gathered_before;  // the blocks whose points are in sub
   int skipped = 0;  // non-finite points of the last gathering
   for (;;) {
     if (touchTracks()) continue;
     const std::unordered_set<std::uint64_t> near = nearGrown();
+    gathered.clear();
+    for (const auto& b : blocks.blocks)
+      if (near.count(packCellKey(b.block))) gathered.push_back(packCellKey(b.block));
+    // Grown blocks that bring no new points (the ring already held them) leave the components
+    // as they were: only which points lie in grown blocks changes.
+    const bool same_points = !gathered_before.empty() && gathered == gathered_before;
     std::vector<char> in_grown;  // per point of sub
-    sub->clear();
+    if (!same_points) sub->clear();
     skipped = 0;
+    std::size_t k = 0;
     for (const auto& b : blocks.blocks) {
       const std::uint64_t key = packCellKey(b.block);
-      if (!near.count(key)) continue;
+      if (k >= gathered.size() || gathered[k] != key) continue;
+      ++k;
       const char g = grown.count(key) ? 1 : 0;
       for (const Point& p : b.points) {
         if (!p.allFinite()) {
           ++skipped;
           continue;
         }
-        sub->push_back(p);
+        if (!same_points) sub->push_back(p);
         in_grown.push_back(g);
       }
     }
+    if (!same_points) components = euclideanClusters(*sub, every);
+    gathered_before.swap(gathered);
     found.clear();
     bool grew = false;
-    for (auto& component : euclideanClusters(*sub, every)) {
+    for (const auto& component : components) {
       bool reaches = false;
       for (int j : component) reaches = reaches || in_grown[static_cast<std::size_t>(j)];
       if (!reaches) continue;  // a cluster of the ring only: not changed (or cut off here)
       for (int j : component)
         if (!in_grown[static_cast<std::size_t>(j)]) grew = grow(cellOf((*sub)[static_cast<std::size_t>(j)], inv)) || grew;
-      found.push_back(std::move(component));
+      found.push_back(component);
     }
     if (!grew) break;
   }
