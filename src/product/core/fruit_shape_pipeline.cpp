@@ -310,6 +310,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
     std::unordered_set<std::uint64_t> cells;
   };
   std::vector<FitJob> jobs;  // changed clusters no previous fit explains
+  std::vector<std::size_t> kept_at;  // in next: re-observed fruits whose fit still explains them
   for (const auto& cluster : clusters) {
     if (cancel && cancel->load()) return abandon();
     PointList pts;
@@ -337,20 +338,26 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
       t.cluster_points = pts.size();
       t.cells = cells;
       t.split_points = 0;  // a cluster of its own now
-      predictMissing(&t.estimate, &stats_);
+      kept_at.push_back(next.size());  // its unseen surface is recomputed beside the fits
       next.push_back(std::move(t));
       ++stats_.kept;
       continue;
     }
     jobs.push_back({std::move(pts), signature, std::move(cells)});
   }
-  // The changed clusters' fits, independent of one another; their fruits join in cluster order.
+  // The changed clusters' fits, independent of one another (their fruits join in cluster
+  // order), then the kept fruits' unseen surfaces.
   std::vector<std::vector<Track>> fitted(jobs.size());
-  std::vector<PipelineStats> job_stats(jobs.size());
+  std::vector<PipelineStats> job_stats(jobs.size() + kept_at.size());
   try {
     runParallelJobs(
-        jobs.size(), params_.threads,
-        [&](std::size_t j) { fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]); },
+        jobs.size() + kept_at.size(), params_.threads,
+        [&](std::size_t j) {
+          if (j < jobs.size())
+            fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]);
+          else
+            predictMissing(&next[kept_at[j - jobs.size()]].estimate, &job_stats[j]);
+        },
         cancel);
   } catch (...) {  // out of memory, say: the fruits stay as they were, all clustered next time
     abandon();
@@ -358,12 +365,13 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
     throw;
   }
   if (cancel && cancel->load()) return abandon();
-  for (std::size_t j = 0; j < jobs.size(); ++j) {
-    for (auto& t : fitted[j]) {
-      t.cluster_signature = jobs[j].signature;
-      t.cluster_points = jobs[j].points.size();
-      pending.push_back(std::move(t));
-    }
+  for (std::size_t j = 0; j < job_stats.size(); ++j) {
+    if (j < jobs.size())
+      for (auto& t : fitted[j]) {
+        t.cluster_signature = jobs[j].signature;
+        t.cluster_points = jobs[j].points.size();
+        pending.push_back(std::move(t));
+      }
     const PipelineStats& js = job_stats[j];
     stats_.fitted += js.fitted;
     stats_.kept += js.kept;
