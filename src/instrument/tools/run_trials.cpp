@@ -16,6 +16,7 @@
 #include <filesystem>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -242,6 +243,9 @@ int main(int argc, char** argv) {
   jobs = std::min(jobs, trials);
   std::vector<EpisodeResult> results(trials);
   std::vector<double> wall(trials, 0.0);
+  // Per trial and view, the work of the update started after it (fits, kept fits, clusters
+  // examined; -1 without an update): what an update time is made of.
+  std::vector<std::vector<std::array<int, 3>>> work(trials);
   std::atomic<int> next{0};
   std::mutex log;
   auto worker = [&]() {
@@ -254,7 +258,14 @@ int main(int argc, char** argv) {
       const SuperellipsoidEstimator* superellipsoids = owned.get();
       host.add(std::move(owned));
       const auto t0 = std::chrono::steady_clock::now();
-      results[k] = runEpisode(scene, renderer, truth, host, p);
+      auto probe = [&work, k, superellipsoids](const ViewRecord& rec, const RoiOcTree&, const sim::RgbdFrame&,
+                                               const ViewData&) {
+        const PipelineStats s = superellipsoids->lastPipelineStats();
+        work[k].push_back(rec.fit_ms > 0.0 ? std::array<int, 3>{s.fitted, s.kept, s.clusters}
+                                           : std::array<int, 3>{-1, -1, -1});
+        return true;
+      };
+      results[k] = runEpisode(scene, renderer, truth, host, p, probe);
       if (save_surfaces) {
         std::string error;
         if (!writePly(out + "/surface_" + std::to_string(k) + ".ply", superellipsoids->surface(), {}, &error))
@@ -280,14 +291,16 @@ int main(int argc, char** argv) {
     csv << "view,time_s,x,y,z,exploration,gain,attempts,to_shape_target,contour_targets,shape_targets,wall_ms,compute_ms,insert_ms,fit_ms,rss_mib";
     for (const char* est : {"old", "se", "old_box"})
       for (const char* s : kSubsets) csv << ',' << est << '_' << s << "_fruits," << est << '_' << s << "_center_cm," << est << '_' << s << "_accuracy";
-    csv << '\n';
-    for (const auto& v : results[k].views) {
+    csv << ",fits,kept_fits,clusters\n";
+    for (std::size_t i = 0; i < results[k].views.size(); ++i) {
+      const ViewRecord& v = results[k].views[i];
       csv << v.view << ',' << v.time << ',' << v.position.x() << ',' << v.position.y() << ',' << v.position.z() << ','
           << v.exploration << ',' << v.gain << ',' << v.attempts << ',' << v.to_shape_target << ',' << v.contour_targets << ',' << v.shape_targets << ',' << v.wall_ms << ',' << v.compute_ms << ',' << v.insert_ms << ',' << v.fit_ms << ',' << v.rss_mib;
       for (const Evaluation* e : {&v.old_true, &v.se_true, &v.old_box})
         for (int s = 0; s < 3; ++s)
           csv << ',' << subset(*e, s).fruits << ',' << subset(*e, s).center_error_cm << ',' << subset(*e, s).accuracy;
-      csv << '\n';
+      const std::array<int, 3> w = i < work[k].size() ? work[k][i] : std::array<int, 3>{-1, -1, -1};
+      csv << ',' << w[0] << ',' << w[1] << ',' << w[2] << '\n';
     }
   }
 
