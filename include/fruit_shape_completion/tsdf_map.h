@@ -8,11 +8,13 @@
 #include <fruit_shape_completion/grid_cell.h>
 #include <fruit_shape_completion/types.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <map>
 #include <memory>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -61,6 +63,7 @@ struct TsdfBlock {
   // The map's change count when the block was last handed out for an update: a reader that
   // remembers it knows whether the block may have changed since.
   std::uint64_t revision = 0;
+  std::uint64_t logged_in = 0;  // the update log's generation it was last logged in (TsdfMap)
 
   std::uint32_t indexOf(int x, int y, int z) const { return static_cast<std::uint32_t>(x + side * (y + side * z)); }
   Eigen::Vector3i coordsOf(std::uint32_t idx) const {
@@ -129,6 +132,26 @@ class TsdfMap {
     for (const auto& kb : blocks_) fn(*kb.second);
   }
 
+  // The update log: a reader that visits only the blocks updated since it last looked, not
+  // every block of a map that holds a whole row. markUpdates() starts a new generation and
+  // returns it; forEachBlockUpdatedSince(mark, fn) calls fn(const TsdfBlock&) once for each
+  // block updated since markUpdates() returned `mark`, or returns false (fn not called) when the
+  // log no longer reaches back that far (the map was cleared or loaded, or the log was trimmed):
+  // then the reader visits every block. Any number of readers may keep their own marks.
+  std::uint64_t markUpdates() const;
+  template <typename Fn>
+  bool forEachBlockUpdatedSince(std::uint64_t mark, Fn&& fn) const {
+    if (mark < log_start_ || mark > log_generation_) return false;
+    auto it = std::lower_bound(update_log_.begin(), update_log_.end(), mark,
+                               [](const LogEntry& e, std::uint64_t m) { return e.generation < m; });
+    // A block is logged once per generation: only a mark older than the last needs the set.
+    const bool one_generation = it == update_log_.end() || it->generation == update_log_.back().generation;
+    std::unordered_set<const TsdfBlock*> seen;
+    for (; it != update_log_.end(); ++it)
+      if (one_generation || seen.insert(it->block).second) fn(*it->block);
+    return true;
+  }
+
   // Binary file: the observed voxels only, written atomically (atomic_file.h). load() leaves
   // the map unchanged on error.
   bool save(const std::string& path, std::string* error) const;
@@ -148,6 +171,23 @@ class TsdfMap {
   TsdfBlock* cached_block_ = nullptr;
   std::uint64_t epoch_;
   std::uint64_t revision_ = 0;
+  struct LogEntry {
+    std::uint64_t generation;
+    const TsdfBlock* block;
+  };
+  // Blocks in the order they were first updated in each generation (ascending generations).
+  // Mutable: readers mark generations under the same lock that guards their reading.
+  mutable std::vector<LogEntry> update_log_;
+  mutable std::uint64_t log_generation_ = 1, log_start_ = 1;
+  void logUpdate(TsdfBlock* block) {
+    if (block->logged_in == log_generation_) return;
+    block->logged_in = log_generation_;
+    update_log_.push_back({log_generation_, block});
+  }
+  void resetLog() const {
+    update_log_.clear();
+    log_start_ = ++log_generation_;
+  }
 };
 
 }  // namespace fruit_shape_completion

@@ -46,6 +46,8 @@ class IncrementalSurfaceExtractor {
   std::unordered_map<std::uint64_t, CachedBlock> blocks_;  // by block coordinates (packCellKey)
   std::size_t last_extracted_ = 0;
   SurfaceBlocks last_blocks_;
+  std::uint64_t mark_ = 0;  // the map's update-log generation at the last call
+  bool marked_ = false;
 };
 
 struct TriangleMesh {

@@ -14,6 +14,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <unordered_set>
 #include <thread>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -615,6 +616,43 @@ TEST(TsdfMap, IncrementalSurfaceExtractionTouchesOnlyChangedBlocks) {
     expectSame();
     EXPECT_EQ(incremental.lastBlocksExtracted(), map.blockCount());
   }
+}
+
+// The update log names exactly the blocks updated since a reader's mark, for each of two
+// readers with their own marks, and refuses (the reader then visits every block) once the map
+// was cleared.
+TEST(TsdfMap, TheUpdateLogNamesTheBlocksUpdatedSinceEachReadersMark) {
+  AnalyticScene near_scene, far_scene;
+  near_scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0, 0, 0.5)));
+  far_scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(1.0, 0, 0.5)));
+  TsdfMap map;
+  const TsdfIntegrator integ;
+  integrateViews(map, integ, near_scene, near_scene.shapes[0].t, 2);
+  const std::uint64_t first = map.markUpdates();
+  integrateViews(map, integ, far_scene, far_scene.shapes[0].t, 2);
+  const std::uint64_t second = map.markUpdates();
+  integrateViews(map, integ, near_scene, near_scene.shapes[0].t, 1, 0.0, 5);
+  auto updatedSince = [&](std::uint64_t mark, std::size_t* near, std::size_t* far) {
+    *near = *far = 0;
+    std::unordered_set<const TsdfBlock*> seen;
+    const bool ok = map.forEachBlockUpdatedSince(mark, [&](const TsdfBlock& b) {
+      EXPECT_TRUE(seen.insert(&b).second) << "a block named twice";
+      (b.origin.x() * map.voxelSize() > 0.5 ? *far : *near) += 1;
+    });
+    return ok;
+  };
+  std::size_t near = 0, far = 0;
+  ASSERT_TRUE(updatedSince(second, &near, &far));
+  EXPECT_GT(near, 0u);
+  EXPECT_EQ(far, 0u);  // the far sphere was not seen since the second mark
+  ASSERT_TRUE(updatedSince(first, &near, &far));
+  EXPECT_GT(near, 0u);
+  EXPECT_GT(far, 0u);
+  std::size_t total = 0;
+  map.forEachBlock([&](const TsdfBlock& b) { total += b.revision > 0; });
+  EXPECT_LE(near + far, total);
+  map.clear();
+  EXPECT_FALSE(updatedSince(second, &near, &far));
 }
 
 // A row scanned view by view: the pipeline that re-clusters only around the blocks each view

@@ -110,6 +110,7 @@ bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
 TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
   if (cached_block_ != nullptr && origin == cached_origin_) {
     cached_block_->revision = ++revision_;
+    logUpdate(cached_block_);
     return cached_block_;
   }
   if (!blockInRange(origin)) return nullptr;
@@ -129,7 +130,21 @@ TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
   cached_origin_ = origin;
   cached_block_ = it->second.get();
   cached_block_->revision = ++revision_;
+  logUpdate(cached_block_);
   return cached_block_;
+}
+
+std::uint64_t TsdfMap::markUpdates() const {
+  // Readers mark once per look: generations before the last few are dropped once the log
+  // outgrows the map, and a reader that old visits every block instead.
+  if (update_log_.size() > 2 * blocks_.size() + 4096) {
+    const std::uint64_t keep_from = log_generation_ > 4 ? log_generation_ - 4 : 1;
+    const auto first = std::lower_bound(update_log_.begin(), update_log_.end(), keep_from,
+                                         [](const LogEntry& e, std::uint64_t m) { return e.generation < m; });
+    update_log_.erase(update_log_.begin(), first);
+    log_start_ = std::max(log_start_, keep_from);
+  }
+  return ++log_generation_;
 }
 
 bool TsdfMap::setVoxel(const VoxelIndex& v, const TsdfVoxel& value) {
@@ -159,6 +174,7 @@ std::size_t TsdfMap::memoryBytes() const {
 }
 
 void TsdfMap::clear() {
+  resetLog();
   blocks_.clear();
   cached_block_ = nullptr;
   epoch_ = nextEpoch();
@@ -249,6 +265,7 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
         if (!loaded.setVoxel(g, v)) return fail("voxel outside the crop box or block limit");
       }
     }
+    resetLog();
     blocks_.swap(loaded.blocks_);
     params_ = p;  // the file's block side may differ from the map's
     cached_block_ = nullptr;

@@ -1,6 +1,7 @@
 #include <fruit_shape_completion/tsdf_surface.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -71,6 +72,42 @@ const SurfaceBlocks& IncrementalSurfaceExtractor::extractBlocks(const TsdfMap& m
     blocks_.clear();
     epoch_ = map.epoch();
   }
+  // Without projection only the blocks the map logged as updated since the last call are
+  // visited (a row's map holds thousands); the list of blocks with points is kept in key order.
+  if (!fresh && marked_ && !params_.project_to_zero_crossing) {
+    SurfaceBlocks& out = last_blocks_;
+    out.changed.clear();
+    out.all_changed = false;
+    last_extracted_ = 0;
+    auto visit = [&](const TsdfBlock& block) {
+      const GridCell b = blockCoordsOf(map, block);
+      const std::uint64_t key = packCellKey(b);
+      const auto [it, inserted] = blocks_.try_emplace(key);
+      CachedBlock& entry = it->second;
+      if (!inserted && entry.revision == block.revision) return;
+      entry.revision = block.revision;
+      PointList points;
+      appendBlockSurface(map, block, params_, &points);
+      ++last_extracted_;
+      if (points == entry.points.get()) return;
+      out.changed.push_back(b);
+      entry.points = std::move(points);
+      const auto pos = std::lower_bound(out.blocks.begin(), out.blocks.end(), key,
+                                        [](const SurfaceBlocks::Block& x, std::uint64_t k) { return packCellKey(x.block) < k; });
+      const bool listed = pos != out.blocks.end() && packCellKey(pos->block) == key;
+      if (entry.points.empty()) {
+        if (listed) out.blocks.erase(pos);
+      } else if (listed) {
+        pos->points = entry.points;
+      } else {
+        out.blocks.insert(pos, {b, entry.points});
+      }
+    };
+    if (map.forEachBlockUpdatedSince(mark_, visit)) {
+      mark_ = map.markUpdates();
+      return out;
+    }
+  }
   // With projection, a surface point also reads the voxels next to it, so a changed block's
   // neighbours are extracted again too; without, a block's own revision tells (below).
   std::unordered_map<std::uint64_t, char> changed;
@@ -127,6 +164,8 @@ const SurfaceBlocks& IncrementalSurfaceExtractor::extractBlocks(const TsdfMap& m
       it = blocks_.erase(it);
     }
   }
+  mark_ = map.markUpdates();
+  marked_ = true;
   return out;
 }
 
