@@ -142,8 +142,7 @@ class TsdfMap {
   template <typename Fn>
   bool forEachBlockUpdatedSince(std::uint64_t mark, Fn&& fn) const {
     if (mark < log_start_ || mark > log_generation_) return false;
-    auto it = std::lower_bound(update_log_.begin(), update_log_.end(), mark,
-                               [](const LogEntry& e, std::uint64_t m) { return e.generation < m; });
+    auto it = firstLoggedIn(mark);
     // A block is logged once per generation: only a mark older than the last needs the set.
     const bool one_generation = it == update_log_.end() || it->generation == update_log_.back().generation;
     std::unordered_set<const TsdfBlock*> seen;
@@ -183,6 +182,11 @@ class TsdfMap {
     if (block->logged_in == log_generation_) return;
     block->logged_in = log_generation_;
     update_log_.push_back({log_generation_, block});
+  }
+  // The first entry of `generation` or later.
+  std::vector<LogEntry>::iterator firstLoggedIn(std::uint64_t generation) const {
+    return std::lower_bound(update_log_.begin(), update_log_.end(), generation,
+                            [](const LogEntry& e, std::uint64_t g) { return e.generation < g; });
   }
   void resetLog() const {
     update_log_.clear();

@@ -41,6 +41,8 @@ class IncrementalSurfaceExtractor {
     std::uint64_t revision = 0;
     SharedPoints points;
   };
+  // Extracts the block's points again; true (and the block noted as changed) if they differ.
+  bool reextract(const TsdfMap& map, const TsdfBlock& block, CachedBlock* entry);
   SurfaceExtractionParams params_;
   std::uint64_t epoch_ = 0;
   std::unordered_map<std::uint64_t, CachedBlock> blocks_;  // by block coordinates (packCellKey)

@@ -60,26 +60,23 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
   every.min_size = 1;
   every.max_size = std::numeric_limits<int>::max();
   std::vector<std::vector<int>> found, components;
-  std::vector<std::uint64_t> gathered, gathered_before;  // the blocks whose points are in sub
+  std::vector<std::size_t> gathered, gathered_before;  // the blocks (indices) whose points are in sub
   int skipped = 0;  // non-finite points of the last gathering
   for (;;) {
     if (touchTracks()) continue;
     const std::unordered_set<std::uint64_t> near = nearGrown();
     gathered.clear();
-    for (const auto& b : blocks.blocks)
-      if (near.count(packCellKey(b.block))) gathered.push_back(packCellKey(b.block));
+    for (std::size_t i = 0; i < blocks.blocks.size(); ++i)
+      if (near.count(packCellKey(blocks.blocks[i].block))) gathered.push_back(i);
     // Grown blocks that bring no new points (the ring already held them) leave the components
     // as they were: only which points lie in grown blocks changes.
     const bool same_points = !gathered_before.empty() && gathered == gathered_before;
     std::vector<char> in_grown;  // per point of sub
     if (!same_points) sub->clear();
     skipped = 0;
-    std::size_t k = 0;
-    for (const auto& b : blocks.blocks) {
-      const std::uint64_t key = packCellKey(b.block);
-      if (k >= gathered.size() || gathered[k] != key) continue;
-      ++k;
-      const char g = grown.count(key) ? 1 : 0;
+    for (const std::size_t i : gathered) {
+      const SurfaceBlocks::Block& b = blocks.blocks[i];
+      const char g = grown.count(packCellKey(b.block)) ? 1 : 0;
       for (const Point& p : b.points) {
         if (!p.allFinite()) {
           ++skipped;

@@ -139,9 +139,7 @@ std::uint64_t TsdfMap::markUpdates() const {
   // outgrows the map, and a reader that old visits every block instead.
   if (update_log_.size() > 2 * blocks_.size() + 4096) {
     const std::uint64_t keep_from = log_generation_ > 4 ? log_generation_ - 4 : 1;
-    const auto first = std::lower_bound(update_log_.begin(), update_log_.end(), keep_from,
-                                         [](const LogEntry& e, std::uint64_t m) { return e.generation < m; });
-    update_log_.erase(update_log_.begin(), first);
+    update_log_.erase(update_log_.begin(), firstLoggedIn(keep_from));
     log_start_ = std::max(log_start_, keep_from);
   }
   return ++log_generation_;

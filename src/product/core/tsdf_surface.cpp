@@ -66,6 +66,16 @@ PointList extractSurfacePoints(const TsdfMap& map, const SurfaceExtractionParams
   return out;
 }
 
+bool IncrementalSurfaceExtractor::reextract(const TsdfMap& map, const TsdfBlock& block, CachedBlock* entry) {
+  PointList points;
+  appendBlockSurface(map, block, params_, &points);
+  ++last_extracted_;
+  if (points == entry->points.get()) return false;
+  last_blocks_.changed.push_back(blockCoordsOf(map, block));
+  entry->points = std::move(points);
+  return true;
+}
+
 const SurfaceBlocks& IncrementalSurfaceExtractor::extractBlocks(const TsdfMap& map) {
   const bool fresh = map.epoch() != epoch_ || blocks_.empty();
   if (map.epoch() != epoch_) {
@@ -84,14 +94,9 @@ const SurfaceBlocks& IncrementalSurfaceExtractor::extractBlocks(const TsdfMap& m
       const std::uint64_t key = packCellKey(b);
       const auto [it, inserted] = blocks_.try_emplace(key);
       CachedBlock& entry = it->second;
-      if (!inserted && entry.revision == block.revision) return;
+      const bool stale = inserted || entry.revision != block.revision;
       entry.revision = block.revision;
-      PointList points;
-      appendBlockSurface(map, block, params_, &points);
-      ++last_extracted_;
-      if (points == entry.points.get()) return;
-      out.changed.push_back(b);
-      entry.points = std::move(points);
+      if (!stale || !reextract(map, block, &entry)) return;
       const auto pos = std::lower_bound(out.blocks.begin(), out.blocks.end(), key,
                                         [](const SurfaceBlocks::Block& x, std::uint64_t k) { return packCellKey(x.block) < k; });
       const bool listed = pos != out.blocks.end() && packCellKey(pos->block) == key;
@@ -140,16 +145,8 @@ const SurfaceBlocks& IncrementalSurfaceExtractor::extractBlocks(const TsdfMap& m
     CachedBlock& entry = it->second;
     ++present;
     const bool stale = params_.project_to_zero_crossing ? changed.count(key) > 0 : entry.revision != block.revision;
-    if (inserted || stale) {
-      PointList points;
-      appendBlockSurface(map, block, params_, &points);
-      ++last_extracted_;
-      if (points != entry.points.get()) {
-        out.changed.push_back(b);
-        entry.points = std::move(points);
-      }
-    }
     entry.revision = block.revision;
+    if (inserted || stale) reextract(map, block, &entry);
     if (!entry.points.empty()) out.blocks.push_back({b, entry.points});
   });
   if (blocks_.size() != present) {  // blocks went without a new epoch: their points went too
