@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <fstream>
 #include <limits>
+#include <random>
 #include <utility>
 
 using namespace fruit_shape_completion;
@@ -380,6 +381,24 @@ TEST(FruitShapePipeline, AFruitOneShapeFitsOnlyRoughlyIsNotCutIntoOverlappingPie
   EXPECT_GT(f->rms, params.fit.max_rms);
   EXPECT_LT((f->center() - center).norm(), 0.01);
   EXPECT_NEAR(f->volume, true_volume, 0.15 * true_volume);
+}
+
+TEST(FruitShapePipeline, ARoughFitAsRoundAsOneFruitIsNotTriedSplit) {
+  // Rough (above split_rms) but not elongated as one shape over two touching fruits is: one
+  // fruit, one fit. The two small touching fruits above are fitted apart all the same.
+  Superellipsoid s = Superellipsoid::sphere(0.035, Eigen::Vector3d(0, 0, 0.5));
+  s.e1 = s.e2 = 0.6;
+  PointList cloud = scan(s, 0.5, Eigen::Vector3d(0, -1, 0.2), 5);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.005);
+  for (auto& p : cloud) p += (p - s.t).normalized() * noise(rng);
+  FruitShapePipeline pipeline;
+  const auto [accepted, f] = acceptedAndNearest(pipeline, cloud, s.t);
+  ASSERT_TRUE(f->accepted) << f->reason;
+  ASSERT_GT(f->rms, pipeline.params().split_rms);
+  EXPECT_EQ(accepted, 1);
+  EXPECT_EQ(pipeline.lastStats().fitted, 1);
+  EXPECT_NEAR(f->volume, s.volume(), 0.2 * s.volume());
 }
 
 TEST(FruitShapePipeline, ATouchingPairStaysSplitWhenTheHalfSeenNeighboursFitBulgesIntoTheFruit) {

@@ -231,11 +231,13 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::fitChangedCluster(
     const int previous = bestOverlap(cells);
     const std::size_t checked = previous >= 0 ? tracks_[static_cast<std::size_t>(previous)].rough_checked_points : 0;
     const bool split_rough = static_cast<double>(pts.size()) > (1.0 + kRecheckGrowth) * static_cast<double>(checked);
+    const int fitted_before = stats->fitted;
     Parts parts = estimateWithSplit(pts, normals, 0, stats, &cells, whole ? &*whole : nullptr, split_rough);
+    const bool tried = stats->fitted - fitted_before >= 2;  // a split's two halves were fitted
     for (auto& part : parts) {
       Track t;
       if (parts.size() == 1 && part.second.accepted && part.second.rms > params_.split_rms)
-        t.rough_checked_points = split_rough ? pts.size() : checked;
+        t.rough_checked_points = tried ? pts.size() : checked;
       t.estimate = std::move(part.second);
       t.fitted_points = part.first.size();
       t.cells = part.first.size() == pts.size() ? cells : occupiedCells(part.first);  // unsplit: the cluster's own cells
@@ -349,10 +351,17 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
   // order), then the kept fruits' unseen surfaces.
   std::vector<std::vector<Track>> fitted(jobs.size());
   std::vector<PipelineStats> job_stats(jobs.size() + kept_at.size());
+  // Largest clusters first: the longest fits start early and the short ones fill in beside
+  // them, so the threads finish together.
+  std::vector<std::size_t> order(jobs.size() + kept_at.size());
+  for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
+  std::stable_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(jobs.size()),
+                   [&](std::size_t l, std::size_t r) { return jobs[l].points.size() > jobs[r].points.size(); });
   try {
     runParallelJobs(
-        jobs.size() + kept_at.size(), params_.threads,
-        [&](std::size_t j) {
+        order.size(), params_.threads,
+        [&](std::size_t i) {
+          const std::size_t j = order[i];
           if (j < jobs.size())
             fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]);
           else

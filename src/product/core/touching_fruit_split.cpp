@@ -33,6 +33,13 @@ bool anyTwoOneFruit(const std::vector<const Superellipsoid*>& fits) {
 constexpr double kSplitGain = 0.7;
 // Overlapping parts are one fruit unless they lower the RMS below this share of the whole's.
 constexpr double kOverlapGain = 0.5;
+// One shape over two touching fruits, the smaller at least half the larger across, is at least
+// 1.5 times as long as it is wide; single fruits fitted roughly (lobes, blurred rims) rarely
+// are. A rough fit less elongated than this is not tried split.
+constexpr double kPairElongation = 1.4;
+double elongation(const Superellipsoid& s) {
+  return std::max({s.a, s.b, s.c}) / std::min({s.a, s.b, s.c});
+}
 
 }  // namespace
 
@@ -141,7 +148,8 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
   // them better) and keep the split if some part fits.
   // A fit that is accepted but explains its points only roughly may be two small touching
   // fruits fitted as one: its split is tried too, and kept only if it explains them far better.
-  const bool suspect = split_rough && whole.accepted && whole.rms > params_.split_rms;
+  const bool suspect =
+      split_rough && whole.accepted && whole.rms > params_.split_rms && elongation(whole.shape) >= kPairElongation;
   if ((whole.accepted && !suspect) || !whole.converged || depth >= params_.max_split_depth ||
       static_cast<int>(points.size()) < 2 * min_part) {
     out.emplace_back(points, whole);
