@@ -144,6 +144,9 @@ class FruitShapePipeline {
   // The predicted unseen surface of an accepted fruit (none otherwise).
   void predictMissing(FruitEstimate* estimate, PipelineStats* stats) const;
   int bestOverlap(const std::unordered_set<std::uint64_t>& cells) const;
+  // Fitted fruits inherit the id of the unreused previous fruit they share most 1 cm cells with
+  // (marking it reused); the others get new ids.
+  void assignIds(std::vector<Track>* fitted, std::vector<char>* reused);
   // The occupied 1 cm cells of the points (how clusters are matched between updates).
   static std::unordered_set<std::uint64_t> occupiedCells(const PointList& points);
   // The previous fruit the changed cluster's points still fit (see refit_tolerance), or -1.

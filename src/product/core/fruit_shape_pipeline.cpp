@@ -17,8 +17,6 @@ namespace fruit_shape_completion {
 
 namespace {
 
-constexpr double kTrackCell = 0.01;  // cell size for matching clusters between updates
-
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -47,14 +45,6 @@ std::uint64_t pointSetSignature(const PointList& points) {
 }
 
 }  // namespace
-
-std::unordered_set<std::uint64_t> FruitShapePipeline::occupiedCells(const PointList& points) {
-  std::unordered_set<std::uint64_t> cells;
-  cells.reserve(points.size());
-  for (const auto& p : points)
-    cells.insert(packCellKey(cellOf(p, 1.0 / kTrackCell)));
-  return cells;
-}
 
 namespace {
 
@@ -149,45 +139,6 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const
   stats->fit_seconds += fit.seconds;
   est.volume = fit.shape.volume();
   return est;
-}
-
-int FruitShapePipeline::bestOverlap(const std::unordered_set<std::uint64_t>& cells) const {
-  int best = -1;
-  std::size_t best_n = 0;
-  for (std::size_t k = 0; k < tracks_.size(); ++k) {
-    std::size_t n = 0;
-    for (auto cell : cells) n += tracks_[k].cells.count(cell);
-    if (n > best_n) {
-      best_n = n;
-      best = static_cast<int>(k);
-    }
-  }
-  return best;
-}
-
-int FruitShapePipeline::stillExplainedBy(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
-                                         const std::vector<char>& reused) const {
-  // Exactly one previous fruit may share cells with the cluster (not a merge, not a split).
-  int only = -1;
-  for (std::size_t k = 0; k < tracks_.size(); ++k) {
-    bool shares = false;
-    for (auto cell : tracks_[k].cells)
-      if (cells.count(cell)) {
-        shares = true;
-        break;
-      }
-    if (!shares) continue;
-    if (only >= 0 || reused[k]) return -1;
-    only = static_cast<int>(k);
-  }
-  if (only < 0) return -1;
-  return stillFits(tracks_[only].estimate, tracks_[only].fitted_points, points) ? only : -1;
-}
-
-bool FruitShapePipeline::stillFits(const FruitEstimate& fit, std::size_t fitted_points, const PointList& points) const {
-  const double tolerance = 1.0 + params_.refit_tolerance;
-  return fit.accepted && static_cast<double>(points.size()) <= tolerance * static_cast<double>(fitted_points) &&
-         rmsRadialDistance(points, fit.shape) <= tolerance * std::max(fit.rms, 0.001);
 }
 
 FruitEstimate FruitShapePipeline::keptEstimate(const FruitEstimate& fit, const PointList& points) {
@@ -390,33 +341,8 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
     stats_.missing_seconds += js.missing_seconds;
   }
 
-  // Ids: fitted fruits inherit the id of the previous fruit they share most 1 cm cells with,
-  // largest overlap first, one to one; the rest get new ids.
-  struct Pair {
-    std::size_t overlap;
-    int fruit, track;
-  };
-  std::vector<Pair> pairs;
-  for (std::size_t f = 0; f < pending.size(); ++f)
-    for (std::size_t k = 0; k < tracks_.size(); ++k) {
-      if (reused[k]) continue;
-      std::size_t n = 0;
-      for (auto cell : pending[f].cells) n += tracks_[k].cells.count(cell);
-      if (n > 0) pairs.push_back({n, static_cast<int>(f), static_cast<int>(k)});
-    }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& l, const Pair& r) {
-    return l.overlap != r.overlap ? l.overlap > r.overlap : (l.fruit != r.fruit ? l.fruit < r.fruit : l.track < r.track);
-  });
-  std::vector<int> id(pending.size(), -1);
-  for (const auto& p : pairs) {
-    if (id[p.fruit] >= 0 || reused[p.track]) continue;
-    id[p.fruit] = tracks_[p.track].estimate.id;
-    reused[p.track] = 1;
-  }
-  for (std::size_t f = 0; f < pending.size(); ++f) {
-    pending[f].estimate.id = id[f] >= 0 ? id[f] : next_id_++;
-    next.push_back(std::move(pending[f]));
-  }
+  assignIds(&pending, &reused);
+  for (auto& t : pending) next.push_back(std::move(t));
   // The blocks of the fruits formed now, for the next local update.
   if (blocks != nullptr && blocks->points_in_blocks && blocks->block_size > 0.0) {
     const double inv = 1.0 / blocks->block_size;
