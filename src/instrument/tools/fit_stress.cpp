@@ -217,6 +217,10 @@ int main(int argc, char** argv) {
   app.add_option("--function-tolerance", params.fit.function_tolerance, "the fit's fit_function_tolerance")
       ->capture_default_str();
   app.add_option("--refit-tolerance", params.refit_tolerance, "the pipeline's refit_tolerance")->capture_default_str();
+  app.add_option("--alpha", params.fit.alpha, "the fit's centre prior weight (fit_alpha)")->capture_default_str();
+  app.add_option("--gamma", params.fit.gamma, "the fit's axis similarity weight (fit_gamma)")->capture_default_str();
+  app.add_option("--center-lambda", params.center_lambda, "the centre prior's pull toward the cluster mean")
+      ->capture_default_str();
   int dump_index = -1;
   std::string dump_file;
   app.add_option("--dump-index", dump_index, "write this case's cloud (x y z per line) to --dump-file");
