@@ -49,6 +49,8 @@ struct Outcome {
   double ratio = 0;         // true volume / fitted volume
   double rms = 0;           // the matched fit's RMS radial residual [m]
   double min_axis = 0;      // the matched fit's shortest semi-axis [m]
+  double max_axis = 0;      // ... and its longest
+  double e1 = 0, e2 = 0;    // ... and its exponents
   bool inside = false;      // the true volume lies in the fit's 90 % interval
   double half_width = 0;    // the interval's half-width relative to the fitted volume
   bool found = false;
@@ -188,6 +190,9 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
       o.ratio = c.volume / f.volume;
       o.rms = f.rms;
       o.min_axis = std::min({f.shape.a, f.shape.b, f.shape.c});
+      o.max_axis = std::max({f.shape.a, f.shape.b, f.shape.c});
+      o.e1 = f.shape.e1;
+      o.e2 = f.shape.e2;
       o.inside = c.volume >= f.volume_lo && c.volume <= f.volume_hi;
       o.half_width = 0.5 * (f.volume_hi - f.volume_lo) / f.volume;
     }
@@ -253,6 +258,7 @@ int main(int argc, char** argv) {
                              {"found", r.o.found}, {"volume_accuracy", r.o.accuracy}, {"center_error_mm", r.o.center_mm},
                              {"pipeline_ms", r.o.fit_ms}, {"fit_coverage", r.o.fit_coverage},
                              {"true_over_fitted_volume", r.o.ratio}, {"rms_m", r.o.rms}, {"fit_min_axis_m", r.o.min_axis},
+                             {"fit_max_axis_m", r.o.max_axis}, {"fit_e1", r.o.e1}, {"fit_e2", r.o.e2},
                              {"inside_ci90", r.o.inside}, {"ci90_relative_half_width", r.o.half_width}});
   std::printf("%-26s %-14s %5s %8s %8s %8s %10s %10s %9s %8s %8s\n", "coverage", "kind", "n", "mean", "p5", "worst",
               "centre mm", "centre p95", "ms (med)", "in ci90", "ci90 hw");
