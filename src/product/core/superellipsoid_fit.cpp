@@ -64,6 +64,7 @@ void FitParams::validate() const {
 namespace {
 
 constexpr size_t kStartSubsample = 80;  // points per competing start
+constexpr int kStartRace = 15;          // iterations each start runs before the lowest goes on
 
 struct Solution {
   double shape[5], t[3], rpy[3];
@@ -277,18 +278,27 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
       starts.push_back(s);
     }
   }
-  // Several starts compete on an even subsample of the points; only the winner is refined on
-  // all of them.
+  // Several starts compete on an even subsample of the points for kStartRace iterations each;
+  // the one lowest then goes on to converge there, and only it is refined on all of them.
+  // Starts that reach different minima part within the race; the rest of their descent would
+  // only be paid to be thrown away.
   const Solution* best = &starts.front();
   if (starts.size() > 1) {
     std::vector<Point> subsample;
     const size_t step = std::max<size_t>(1, finite.size() / kStartSubsample);
     for (size_t i = 0; i < finite.size(); i += step) subsample.push_back(finite[i]);
+    FitParams race = params;
+    race.max_iterations = std::min(params.max_iterations, kStartRace);
     for (auto& s : starts) {
-      solve(subsample, center_prior, params, s);
+      solve(subsample, center_prior, race, s);
       result.iterations += s.iterations;
-      if ((s.converged && !best->converged) || (s.converged == best->converged && s.cost < best->cost))
-        best = &s;
+      if (s.cost < best->cost) best = &s;
+    }
+    Solution& winner = starts[static_cast<std::size_t>(best - starts.data())];
+    if (!winner.converged && params.max_iterations > race.max_iterations) {
+      race.max_iterations = params.max_iterations - race.max_iterations;
+      solve(subsample, center_prior, race, winner);
+      result.iterations += winner.iterations;
     }
   }
   Solution final_solution = *best;
