@@ -292,7 +292,7 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
     for (auto& s : starts) {
       solve(subsample, center_prior, race, s);
       result.iterations += s.iterations;
-      if (s.cost < best->cost) best = &s;
+      if (std::isfinite(s.cost) && (!std::isfinite(best->cost) || s.cost < best->cost)) best = &s;
     }
     Solution& winner = starts[static_cast<std::size_t>(best - starts.data())];
     if (!winner.converged && params.max_iterations > race.max_iterations) {
