@@ -282,7 +282,7 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
   // the one lowest then goes on to converge there, and only it is refined on all of them.
   // Starts that reach different minima part within the race; the rest of their descent would
   // only be paid to be thrown away.
-  const Solution* best = &starts.front();
+  Solution* best = &starts.front();
   if (starts.size() > 1) {
     std::vector<Point> subsample;
     const size_t step = std::max<size_t>(1, finite.size() / kStartSubsample);
@@ -294,11 +294,10 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
       result.iterations += s.iterations;
       if (std::isfinite(s.cost) && (!std::isfinite(best->cost) || s.cost < best->cost)) best = &s;
     }
-    Solution& winner = starts[static_cast<std::size_t>(best - starts.data())];
-    if (!winner.converged && params.max_iterations > race.max_iterations) {
+    if (!best->converged && params.max_iterations > race.max_iterations) {
       race.max_iterations = params.max_iterations - race.max_iterations;
-      solve(subsample, center_prior, race, winner);
-      result.iterations += winner.iterations;
+      solve(subsample, center_prior, race, *best);
+      result.iterations += best->iterations;
     }
   }
   Solution final_solution = *best;
