@@ -16,6 +16,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -72,13 +73,24 @@ inline double quantile(std::vector<double> v, double q) {
   return v[k];
 }
 
+// How views follow one another in insertViewLatency.
+enum class Pace {
+  // The next view as soon as the worker has started the update of the one before: every view
+  // meets a running update (integration and fits on the other threads), as fast as the
+  // estimator takes views. A planner between two views samples, plans and moves for far longer.
+  kMeetsUpdate,
+  // Back to back, faster than any update can take them: the queue of waiting views fills up
+  // and each call integrates the oldest itself. The saturated worst case.
+  kBackToBack,
+};
+
 // What a planner blocks on: per episode e, views[e] calls of insert(host, e, k), each timed, into
-// a fresh host in background mode with the superellipsoid estimator (the fits run on its worker),
-// back to back: every view meets a running fit. insert returns "" or why it cannot go on.
+// a fresh host in background mode with the superellipsoid estimator (the updates run on its
+// worker), paced as `pace` says. insert returns "" or why it cannot go on.
 // Counters: median_ms, p95_ms, max_ms over all calls; fits run and fruits at the end, summed
-// over the episodes.
+// over the episodes; max_waiting, the most views seen waiting for the map after a call.
 template <typename Insert>
-void insertViewLatency(benchmark::State& state, const std::vector<std::size_t>& views, Insert&& insert) {
+void insertViewLatency(benchmark::State& state, const std::vector<std::size_t>& views, Pace pace, Insert&& insert) {
   std::size_t total = 0;
   for (std::size_t n : views) total += n;
   if (total == 0) {
@@ -86,12 +98,13 @@ void insertViewLatency(benchmark::State& state, const std::vector<std::size_t>& 
     return;
   }
   std::vector<double> blocked_ms;
-  std::size_t fits = 0, fruits = 0;
+  std::size_t fits = 0, fruits = 0, max_waiting = 0;
   for (auto _ : state) {
     fruits = 0;
     for (std::size_t e = 0; e < views.size(); ++e) {
       host::ShapeEstimatorHost host(nullptr, host::ShapeEstimatorHost::Updates::kBackground);
       host.add(std::make_unique<host::SuperellipsoidEstimator>());
+      const auto& estimator = dynamic_cast<const host::SuperellipsoidEstimator&>(host.estimator(0));
       for (std::size_t k = 0; k < views[e]; ++k) {
         const auto t0 = std::chrono::steady_clock::now();
         const std::string error = insert(host, e, k);
@@ -100,6 +113,9 @@ void insertViewLatency(benchmark::State& state, const std::vector<std::size_t>& 
           return;
         }
         blocked_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        max_waiting = std::max(max_waiting, estimator.pendingViews());
+        if (pace == Pace::kMeetsUpdate)
+          while (host.updateStatus(0).pending) std::this_thread::sleep_for(std::chrono::microseconds(100));
       }
       host.waitForUpdates(60.0);
       fits += host.updateStatus(0).runs;
@@ -113,6 +129,7 @@ void insertViewLatency(benchmark::State& state, const std::vector<std::size_t>& 
   state.counters["max_ms"] = *std::max_element(blocked_ms.begin(), blocked_ms.end());
   state.counters["fits"] = static_cast<double>(fits) / static_cast<double>(state.iterations());
   state.counters["fruits"] = static_cast<double>(fruits);
+  state.counters["max_waiting"] = static_cast<double>(max_waiting);
 }
 
 }  // namespace bench

@@ -12,6 +12,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <new>
 #include <chrono>
 #include <mutex>
@@ -410,6 +413,71 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   EXPECT_GT(queries.load(), 0);
   ASSERT_EQ(est.fruits().size(), 1u);
   EXPECT_NEAR(est.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
+}
+
+// Views wait for the next update, which integrates them in order; a full queue makes the caller
+// integrate the oldest. The map ends bit for bit as with an update after every view, and every
+// view is counted, the refused ones and the cut ones too.
+TEST(SuperellipsoidEstimator, ViewsWaitForTheUpdateInOrderAndNoneIsLost) {
+  std::mt19937 rng(2);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  std::vector<PartialView> views;
+  const int n = static_cast<int>(SuperellipsoidEstimator::kMaxPendingViews) + 4;
+  for (int v = 0; v < n; ++v) views.emplace_back(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
+  views[3].fruit[0] = Eigen::Vector3d(std::nan(""), 0.0, 0.0);  // integrated, with a warning
+  const PointList none;
+  ViewData refused{none, none, Eigen::Isometry3d::Identity(), 0.0, ViewSource::kCameraFrame};  // no frame
+
+  SuperellipsoidEstimator queued, direct;
+  for (int v = 0; v < n; ++v) {
+    queued.insertView(views[v].data(v));
+    direct.insertView(views[v].data(v));
+    direct.update();
+    if (v == 5) {
+      queued.insertView(refused);
+      direct.insertView(refused);
+      EXPECT_FALSE(queued.lastInput().ok());
+    }
+    EXPECT_LT(queued.pendingViews(), SuperellipsoidEstimator::kMaxPendingViews);
+    if (v == 0) {
+      EXPECT_EQ(queued.pendingViews(), 1u);
+      EXPECT_EQ(queued.status().blocks, 0u);  // not yet in the map
+    }
+  }
+  // Five views came beyond the queue's room: the callers integrated the oldest five.
+  EXPECT_EQ(queued.pendingViews(), SuperellipsoidEstimator::kMaxPendingViews - 1);
+  EXPECT_EQ(queued.status().views, static_cast<std::size_t>(n + 1));
+  EXPECT_GT(queued.lastIntegration().points_in, 0u);
+  queued.update();
+  EXPECT_EQ(queued.pendingViews(), 0u);
+  EXPECT_EQ(queued.status().views_refused, 1u);
+  EXPECT_EQ(queued.status().points_skipped, direct.status().points_skipped);
+  const auto problems = queued.takeIntegrationProblems();
+  ASSERT_EQ(problems.size(), 1u);  // the NaN point; the refused view was the input stage's to report
+  EXPECT_NE(problems[0].warning.find("NaN"), std::string::npos);
+  EXPECT_TRUE(queued.takeIntegrationProblems().empty());
+
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string a = (dir / "fsc_queued.tsdf").string(), b = (dir / "fsc_direct.tsdf").string();
+  std::string error;
+  ASSERT_TRUE(queued.saveMap(a, &error)) << error;
+  ASSERT_TRUE(direct.saveMap(b, &error)) << error;
+  auto bytes = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  EXPECT_EQ(bytes(a), bytes(b));
+  ASSERT_EQ(queued.fruits().size(), 1u);
+  EXPECT_NEAR(queued.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
+  std::filesystem::remove(a);
+  std::filesystem::remove(b);
+
+  // A reset forgets waiting views as it forgets the map.
+  queued.insertView(views[0].data(0));
+  queued.reset();
+  EXPECT_EQ(queued.pendingViews(), 0u);
+  queued.update();
+  EXPECT_EQ(queued.status().blocks, 0u);
 }
 
 TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAfterwards) {

@@ -81,8 +81,9 @@ class ShapeEstimator {
 // queries of the host's state in another.
 //
 // With background updates (what a planner's process wants), each estimator gets a worker
-// thread: onView() returns once the view is integrated, the fit runs beside the planner on the
-// newest map, and views that arrive meanwhile coalesce into the next fit.
+// thread: onView() returns once the estimators have taken the view (the superellipsoid
+// estimator cuts out its fruit points and leaves the map to its worker), the fit runs beside
+// the planner on the newest map, and views that arrive meanwhile coalesce into the next fit.
 class ShapeEstimatorHost {
  public:
   // Where the host reports a disabled estimator (default: std::cerr); the ROS layer passes
@@ -109,7 +110,7 @@ class ShapeEstimatorHost {
   struct UpdateStatus {
     std::size_t runs = 0, coalesced = 0;
     double last_seconds = 0.0, age_seconds = -1.0;  // the last finished update; age < 0: none
-    bool running = false;
+    bool running = false, pending = false;  // pending: requested, not yet started
   };
   UpdateStatus updateStatus(std::size_t i) const;  // background mode; zeros inline
   // How long the last (up to 256) insertView/onView calls held their caller [ms]: what a

@@ -2,10 +2,12 @@
 // The superellipsoid shape estimator: TSDF fruit map -> surface -> clusters -> fits ->
 // predicted unseen surface. Thread-safe: views may be inserted from one thread (sensor
 // callbacks) while another (the planner) asks for fruits and targets and a third fits. Every
-// view first goes through the fruit input stage (fruit_input_stage.h) as its source asks.
-// Queries read the last update's results and never wait for a fit; a view inserted during a fit
-// waits only for the surface extraction. reset() cancels a running fit, whose results are then
-// never stored: nothing fitted before a reset shows after it.
+// view first goes through the fruit input stage (fruit_input_stage.h) as its source asks, in
+// the caller's thread; its fruit points then wait in a short queue and update() integrates them
+// into the map before it fits, in order. So a sensor callback never waits for the map or a fit
+// (only when kMaxPendingViews are waiting does insertView integrate the oldest itself: nothing
+// is dropped). Queries read the last update's results and never wait for a fit. reset() cancels a
+// running fit, whose results are then never stored: nothing fitted before a reset shows after it.
 #include <fruit_shape_completion/fruit_input_stage.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/fruit_sightings.h>
@@ -15,8 +17,11 @@
 #include <fruit_shape_completion/tsdf_surface.h>
 
 #include <atomic>
+#include <limits>
 #include <memory>
 #include <mutex>
+#include <string>
+#include <vector>
 
 namespace fruit_shape_completion {
 namespace host {
@@ -58,6 +63,8 @@ struct EstimatorStatus {
 
 class SuperellipsoidEstimator : public ShapeEstimator {
  public:
+  // Views whose fruit points may wait for the next update(); beyond it insertView integrates.
+  static constexpr std::size_t kMaxPendingViews = 8;
   explicit SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params = {});
   std::string name() const override { return "superellipsoid"; }
   void insertView(const ViewData& view) override;
@@ -74,8 +81,9 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // map is copied under the lock and written outside it, atomically (a temporary file renamed
   // over the target): views do not wait for the disk, and a failed save keeps the old file.
   // Both first remove the temporaries a killed save to the same path left behind, naming them
-  // in *warning (empty if none).
-  bool saveMap(const std::string& path, std::string* error, std::string* warning = nullptr) const;
+  // in *warning (empty if none). Views still waiting are integrated first (saved; replaced by
+  // a loaded map, as if they had come before it).
+  bool saveMap(const std::string& path, std::string* error, std::string* warning = nullptr);
   bool loadMap(const std::string& path, std::string* error, std::string* warning = nullptr);
   // The accepted fruits of the last update with the views that saw them (fruit_report.h), to a
   // .csv or .json file, atomically.
@@ -92,11 +100,20 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // Snapshots for display and tests: every fruit of the last update, accepted ones first.
   std::vector<FruitEstimate> estimates() const;
   PointList surface() const;
+  // The last view integrated into the map (a view waits for the next update()); its error
+  // is the input stage's if that refused the view.
   IntegrationReport lastIntegration() const;
+  // The integrated views the map refused or cut (error or warning set) since the last call,
+  // oldest first, at most 2 * kMaxPendingViews: what a host logs after an update. (The input
+  // stage's refusals are lastInput()'s, right after insertView.)
+  std::vector<IntegrationReport> takeIntegrationProblems();
   // The input stage's report of the last view (its points not kept).
   FruitInput lastInput() const;
   PipelineStats lastPipelineStats() const;
+  // The input stage's counters include waiting views; the map's (refused, skipped, rays,
+  // blocks) only integrated ones.
   EstimatorStatus status() const;
+  std::size_t pendingViews() const;
   double lastSurfaceSeconds() const;  // surface extraction of the last update
 
  private:
@@ -112,7 +129,8 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   EstimatorLiveParams live_;
   bool live_pending_ = false;  // live_ not yet applied to the fit (params_, pipeline_)
   std::atomic<bool> targets_on_{true};
-  // Lock order: fit_mutex_, then live_mutex_ or map_mutex_, then results_mutex_, then sightings_mutex_.
+  // Lock order: fit_mutex_, then live_mutex_ or map_mutex_, then pending_mutex_, then
+  // results_mutex_, then sightings_mutex_.
   std::mutex fit_mutex_;  // one update at a time; guards pipeline_
   std::atomic<bool> cancel_{false};  // a running update returns early and stores nothing
   std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
@@ -123,9 +141,21 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   IncrementalSurfaceExtractor surface_extractor_;
   TsdfIntegrator integrator_;
   IntegrationReport last_;
-  FruitInput last_input_;
-  EstimatorStatus totals_;
+  std::vector<IntegrationReport> problems_;  // not yet taken
+  EstimatorStatus totals_;  // the map's counters
   bool dirty_ = false;
+  // A view's fruit points as the input stage left them, waiting for the map.
+  struct PendingView {
+    PointList fruit;
+    Eigen::Isometry3d sensor_pose;
+    std::string refused;  // the input stage's error: counted, not integrated
+  };
+  // Integrates the oldest waiting views (all by default) in order; map_mutex_ held.
+  void integratePending(std::size_t max_views = std::numeric_limits<std::size_t>::max());
+  mutable std::mutex pending_mutex_;  // guards the members below up to results_mutex_
+  std::vector<PendingView> pending_;
+  FruitInput last_input_;
+  EstimatorStatus input_totals_;  // the input stage's counters
   mutable std::mutex results_mutex_;  // guards the last update's results below
   // Swapped whole by each update, never changed in place: queries share them.
   std::shared_ptr<const std::vector<FruitEstimate>> accepted_ = std::make_shared<const std::vector<FruitEstimate>>();

@@ -205,6 +205,7 @@ ShapeEstimatorHost::UpdateStatus ShapeEstimatorHost::updateStatus(std::size_t i)
   out.last_seconds = s.last_seconds;
   out.age_seconds = s.age_seconds;
   out.running = s.running;
+  out.pending = s.pending;
   return out;
 }
 

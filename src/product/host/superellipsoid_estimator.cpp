@@ -3,7 +3,9 @@
 #include <fruit_shape_completion/atomic_file.h>
 #include <fruit_shape_completion/fruit_report.h>
 
+#include <algorithm>
 #include <chrono>
+#include <iterator>
 
 namespace fruit_shape_completion {
 namespace host {
@@ -90,31 +92,67 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
     sightings_.addView(view.time, input.fruit);
   }
-  std::lock_guard<std::mutex> lock(map_mutex_);
-  if (input.ok()) {
-    last_ = integrator_.integrate(map_, input.fruit, view.sensor_pose);
-  } else {
-    last_ = IntegrationReport();
-    last_.error = input.error;
+  bool full;
+  {
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    pending_.push_back({std::move(input.fruit), view.sensor_pose, input.error});
+    input.fruit.clear();
+    input.full.clear();
+    input.mask.clear();
+    EstimatorStatus& t = input_totals_;
+    t.camera_frames += view.source == ViewSource::kCameraFrame ? 1 : 0;
+    t.roi_views += view.source == ViewSource::kRoiCloud ? 1 : 0;
+    t.fruit_clouds += view.source == ViewSource::kFruitCloud ? 1 : 0;
+    t.masked_points += input.masked;
+    t.depth_edge_points += input.depth_edges;
+    t.veil_points += input.veil;
+    t.outlier_points += input.outliers;
+    t.points_skipped += input.non_finite;
+    ++t.views;
+    last_input_ = std::move(input);
+    full = pending_.size() >= kMaxPendingViews;
   }
-  input.fruit.clear();
-  input.full.clear();
-  input.mask.clear();
-  totals_.camera_frames += view.source == ViewSource::kCameraFrame ? 1 : 0;
-  totals_.roi_views += view.source == ViewSource::kRoiCloud ? 1 : 0;
-  totals_.fruit_clouds += view.source == ViewSource::kFruitCloud ? 1 : 0;
-  totals_.masked_points += input.masked;
-  totals_.depth_edge_points += input.depth_edges;
-  totals_.veil_points += input.veil;
-  totals_.outlier_points += input.outliers;
-  totals_.points_skipped += input.non_finite;
-  last_input_ = std::move(input);
-  dirty_ = dirty_ || last_.rays > 0;
-  ++totals_.views;
-  totals_.views_refused += last_.ok() ? 0 : 1;
-  totals_.points_skipped += last_.non_finite + last_.out_of_range;
-  totals_.rays_outside += last_.outside_map;
-  totals_.rays_over_budget += last_.over_budget;
+  // Views come faster than updates take them: this caller integrates the oldest one, so the
+  // queue stops growing and a call costs at most what it did before views waited.
+  if (full) {
+    std::lock_guard<std::mutex> lock(map_mutex_);
+    integratePending(1);
+  }
+}
+
+void SuperellipsoidEstimator::integratePending(std::size_t max_views) {
+  std::vector<PendingView> views;
+  {
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    const std::size_t n = std::min(max_views, pending_.size());
+    views.assign(std::make_move_iterator(pending_.begin()), std::make_move_iterator(pending_.begin() + static_cast<long>(n)));
+    pending_.erase(pending_.begin(), pending_.begin() + static_cast<long>(n));
+  }
+  for (PendingView& v : views) {
+    const bool input_refused = !v.refused.empty();
+    if (!input_refused) {
+      last_ = integrator_.integrate(map_, v.fruit, v.sensor_pose);
+    } else {
+      last_ = IntegrationReport();
+      last_.error = std::move(v.refused);
+    }
+    dirty_ = dirty_ || last_.rays > 0;
+    totals_.views_refused += last_.ok() ? 0 : 1;
+    totals_.points_skipped += last_.non_finite + last_.out_of_range;
+    totals_.rays_outside += last_.outside_map;
+    totals_.rays_over_budget += last_.over_budget;
+    // Kept for the caller's log (the input stage's refusals were its to see at insertView);
+    // beyond the cap they are still in the counters above.
+    const bool problem = !input_refused && (!last_.ok() || !last_.warning.empty());
+    if (problem && problems_.size() < 2 * kMaxPendingViews) problems_.push_back(last_);
+  }
+}
+
+std::vector<IntegrationReport> SuperellipsoidEstimator::takeIntegrationProblems() {
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  std::vector<IntegrationReport> taken;
+  taken.swap(problems_);
+  return taken;
 }
 
 EstimatorStatus SuperellipsoidEstimator::status() const {
@@ -123,9 +161,27 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
   s.blocks = map_.blockCount();
   s.max_blocks = map_.params().maxBlocks();
   s.memory_mb = static_cast<double>(map_.memoryBytes()) / 1048576.0;
+  {
+    std::lock_guard<std::mutex> pending_lock(pending_mutex_);
+    const EstimatorStatus& t = input_totals_;
+    s.views = t.views;
+    s.points_skipped += t.points_skipped;
+    s.camera_frames = t.camera_frames;
+    s.roi_views = t.roi_views;
+    s.fruit_clouds = t.fruit_clouds;
+    s.masked_points = t.masked_points;
+    s.depth_edge_points = t.depth_edge_points;
+    s.veil_points = t.veil_points;
+    s.outlier_points = t.outlier_points;
+  }
   std::lock_guard<std::mutex> results_lock(results_mutex_);
   s.fruits = accepted_->size();
   return s;
+}
+
+std::size_t SuperellipsoidEstimator::pendingViews() const {
+  std::lock_guard<std::mutex> lock(pending_mutex_);
+  return pending_.size();
 }
 
 void SuperellipsoidEstimator::update() {
@@ -144,6 +200,7 @@ void SuperellipsoidEstimator::update() {
   double surface_seconds = 0.0;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
+    integratePending();
     if (!dirty_) return;
     const auto start = std::chrono::steady_clock::now();
     surface = surface_extractor_.extractBlocks(map_);
@@ -198,12 +255,16 @@ void SuperellipsoidEstimator::reset() {
   std::lock_guard<std::mutex> fit_lock(fit_mutex_);
   if (--resets_waiting_ == 0 && !stopping_) cancel_ = false;
   std::lock_guard<std::mutex> map_lock(map_mutex_);
+  std::lock_guard<std::mutex> pending_lock(pending_mutex_);
   std::lock_guard<std::mutex> lock(results_mutex_);
   map_.clear();
   pipeline_.reset();
   totals_ = EstimatorStatus();
   last_ = IntegrationReport();
+  problems_.clear();
+  pending_.clear();  // views from before the reset: never mapped, as if integrated and cleared
   last_input_ = FruitInput();
+  input_totals_ = EstimatorStatus();
   dirty_ = false;
   accepted_ = std::make_shared<const std::vector<FruitEstimate>>();
   rejected_.clear();
@@ -230,11 +291,12 @@ void removeStale(const std::string& path, std::string* warning) {
 
 }  // namespace
 
-bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error, std::string* warning) const {
+bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error, std::string* warning) {
   removeStale(path, warning);
   std::string bytes;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
+    integratePending();
     map_.serialize(&bytes);
   }
   return writeFileAtomically(path, bytes, error);
@@ -251,6 +313,7 @@ bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* erro
     return false;
   }
   std::lock_guard<std::mutex> lock(map_mutex_);
+  integratePending();  // into the map being replaced, as they came before the load
   map_ = std::move(loaded);
   dirty_ = true;  // the next update() fits the loaded map
   return true;
@@ -283,7 +346,7 @@ PointList SuperellipsoidEstimator::surface() const {
 }
 
 FruitInput SuperellipsoidEstimator::lastInput() const {
-  std::lock_guard<std::mutex> lock(map_mutex_);
+  std::lock_guard<std::mutex> lock(pending_mutex_);
   return last_input_;
 }
 

@@ -131,6 +131,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void update() override {
     check();
     estimator_->update();
+    logIntegration();
     // Read and publish in one step with reset(): a fit that a reset overtook publishes the
     // cleared state, never its own.
     std::lock_guard<std::mutex> lock(publish_mutex_);
@@ -193,13 +194,19 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
  private:
   void integrate(const host::ViewData& view) {
     estimator_->insertView(view);
-    const IntegrationReport r = estimator_->lastIntegration();
-    if (!r.ok()) ROS_WARN("%s: view skipped: %s", name_.c_str(), r.error.c_str());
-    // Throttled: a camera that keeps seeing beyond the budget would otherwise log every view.
-    // The totals are gathered only when the message is printed (the macro evaluates its
-    // arguments then): they walk the map's blocks.
-    if (!r.warning.empty())
-      ROS_WARN_THROTTLE(10.0, "%s: %s (%s)", name_.c_str(), r.warning.c_str(), totals().c_str());
+    const FruitInput in = estimator_->lastInput();
+    if (!in.ok()) ROS_WARN("%s: view skipped: %s", name_.c_str(), in.error.c_str());
+  }
+  // The views the last update integrated that the map refused or cut.
+  void logIntegration() {
+    for (const IntegrationReport& r : estimator_->takeIntegrationProblems()) {
+      if (!r.ok()) ROS_WARN("%s: view skipped: %s", name_.c_str(), r.error.c_str());
+      // Throttled: a camera that keeps seeing beyond the budget would otherwise log every view.
+      // The totals are gathered only when the message is printed (the macro evaluates its
+      // arguments then): they walk the map's blocks.
+      if (!r.warning.empty())
+        ROS_WARN_THROTTLE(10.0, "%s: %s (%s)", name_.c_str(), r.warning.c_str(), totals().c_str());
+    }
   }
   void onFruitCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
     try {
