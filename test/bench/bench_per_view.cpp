@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -62,6 +63,11 @@ static void BM_PerViewUpdate(benchmark::State& state) {
          pipeline_s = 0, prior_s = 0, missing_s = 0;
   std::size_t fruits = 0, targets = 0, fits = 0, kept = 0, points = 0;
   const PointList none;
+  // FSC_PER_VIEW_CSV=path: one line per view (its wall time and its parts, CPU of the fits summed
+  // over their threads), to see what makes the slowest views.
+  FILE* view_log = std::getenv("FSC_PER_VIEW_CSV") ? std::fopen(std::getenv("FSC_PER_VIEW_CSV"), "w") : nullptr;
+  if (view_log)
+    std::fprintf(view_log, "view,ms,integrate_ms,surface_ms,cluster_ms,pipeline_ms,prior_ms,fit_cpu_ms,missing_ms,clusters,fits,kept,fruits\n");
   for (auto _ : state) {
     fruits = 0;
     for (const auto& episode : rec.episodes) {
@@ -89,11 +95,18 @@ static void BM_PerViewUpdate(benchmark::State& state) {
         const PointList extra = estimator.extraTargets();
         const auto t1 = std::chrono::steady_clock::now();
         per_view_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        if (view_log)
+          std::fprintf(view_log, "%zu,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%zu\n", per_view_ms.size() - 1,
+                       per_view_ms.back(), 1e3 * estimator.lastIntegration().seconds, 1e3 * estimator.lastSurfaceSeconds(),
+                       1e3 * stats.cluster_seconds, 1e3 * stats.seconds, 1e3 * stats.prior_seconds,
+                       1e3 * stats.fit_seconds, 1e3 * stats.missing_seconds, stats.clusters, stats.fitted, stats.kept,
+                       estimator.fruits().size());
         targets = extra.size();
       }
       fruits += estimator.fruits().size();
     }
   }
+  if (view_log) std::fclose(view_log);
   state.counters["episodes"] = static_cast<double>(rec.episodes.size());
   state.counters["views"] = static_cast<double>(per_view_ms.size() / state.iterations());
   state.counters["median_ms"] = bench::quantile(per_view_ms, 0.5);
