@@ -446,7 +446,7 @@ TEST(SuperellipsoidEstimator, ViewsWaitForTheUpdateInOrderAndNoneIsLost) {
   }
   // Five views came beyond the queue's room: the callers integrated the oldest five.
   EXPECT_EQ(queued.pendingViews(), SuperellipsoidEstimator::kMaxPendingViews - 1);
-  EXPECT_EQ(queued.status().views, static_cast<std::size_t>(n + 1));
+  EXPECT_EQ(queued.status().input.views, static_cast<std::size_t>(n + 1));
   EXPECT_GT(queued.lastIntegration().points_in, 0u);
   queued.update();
   EXPECT_EQ(queued.pendingViews(), 0u);

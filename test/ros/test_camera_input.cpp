@@ -74,8 +74,8 @@ TEST(CameraInput, SimulatorLoopAndPluginRosPathGiveTheSameFruitCloudAndMap) {
   e1.update();
   e2.update();
   EXPECT_EQ(e1.surface(), e2.surface());
-  EXPECT_EQ(e1.status().camera_frames, 1u);
-  EXPECT_EQ(e1.status().depth_edge_points, a.depth_edges);
+  EXPECT_EQ(e1.status().input.camera_frames, 1u);
+  EXPECT_EQ(e1.status().input.depth_edge_points, a.depth_edges);
   EXPECT_GT(a.depth_edges, 0u);  // the blurred outlines were there to drop
 }
 

@@ -46,19 +46,26 @@ struct EstimatorLiveParams {
   double fit_function_tolerance = 1e-6, fit_stall_tolerance = 1e-3;
 };
 
+// The fruit input stage's totals, counted as views are inserted: views by source, and the points
+// each step dropped.
+struct InputTotals {
+  std::size_t views = 0;
+  std::size_t non_finite_points = 0;
+  std::size_t camera_frames = 0, roi_views = 0, fruit_clouds = 0;
+  std::size_t masked_points = 0, depth_edge_points = 0, veil_points = 0, outlier_points = 0;
+};
+
 // What the estimator has dropped since it started (or was reset), and its map's memory: the
 // counters behind its warnings, for logs and diagnostics.
 struct EstimatorStatus {
-  std::size_t views = 0, views_refused = 0;
+  std::size_t views_refused = 0;     // by the input stage or the map
   std::size_t points_skipped = 0;    // NaN/Inf, or outside the range limits
   std::size_t rays_outside = 0;      // partly outside the crop box or the map's range
   std::size_t rays_over_budget = 0;  // partly dropped at the memory budget
   std::size_t blocks = 0, max_blocks = 0;
   double memory_mb = 0.0;
   std::size_t fruits = 0;  // accepted at the last update
-  // The fruit input stage's totals: views by source, and the points each step dropped.
-  std::size_t camera_frames = 0, roi_views = 0, fruit_clouds = 0;
-  std::size_t masked_points = 0, depth_edge_points = 0, veil_points = 0, outlier_points = 0;
+  InputTotals input;  // including views still waiting for the map
 };
 
 class SuperellipsoidEstimator : public ShapeEstimator {
@@ -110,8 +117,8 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // The input stage's report of the last view (its points not kept).
   FruitInput lastInput() const;
   PipelineStats lastPipelineStats() const;
-  // The input stage's counters include waiting views; the map's (refused, skipped, rays,
-  // blocks) only integrated ones.
+  // The input stage's totals include waiting views; the map's counters (refused, skipped,
+  // rays, blocks) only integrated ones.
   EstimatorStatus status() const;
   std::size_t pendingViews() const;
   double lastSurfaceSeconds() const;  // surface extraction of the last update
@@ -155,7 +162,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   mutable std::mutex pending_mutex_;  // guards the members below up to results_mutex_
   std::vector<PendingView> pending_;
   FruitInput last_input_;
-  EstimatorStatus input_totals_;  // the input stage's counters
+  InputTotals input_totals_;
   mutable std::mutex results_mutex_;  // guards the last update's results below
   // Swapped whole by each update, never changed in place: queries share them.
   std::shared_ptr<const std::vector<FruitEstimate>> accepted_ = std::make_shared<const std::vector<FruitEstimate>>();

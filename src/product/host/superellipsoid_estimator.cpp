@@ -99,7 +99,7 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
     input.fruit.clear();
     input.full.clear();
     input.mask.clear();
-    EstimatorStatus& t = input_totals_;
+    InputTotals& t = input_totals_;
     t.camera_frames += view.source == ViewSource::kCameraFrame ? 1 : 0;
     t.roi_views += view.source == ViewSource::kRoiCloud ? 1 : 0;
     t.fruit_clouds += view.source == ViewSource::kFruitCloud ? 1 : 0;
@@ -107,7 +107,7 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
     t.depth_edge_points += input.depth_edges;
     t.veil_points += input.veil;
     t.outlier_points += input.outliers;
-    t.points_skipped += input.non_finite;
+    t.non_finite_points += input.non_finite;
     ++t.views;
     last_input_ = std::move(input);
     full = pending_.size() >= kMaxPendingViews;
@@ -163,16 +163,8 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
   s.memory_mb = static_cast<double>(map_.memoryBytes()) / 1048576.0;
   {
     std::lock_guard<std::mutex> pending_lock(pending_mutex_);
-    const EstimatorStatus& t = input_totals_;
-    s.views = t.views;
-    s.points_skipped += t.points_skipped;
-    s.camera_frames = t.camera_frames;
-    s.roi_views = t.roi_views;
-    s.fruit_clouds = t.fruit_clouds;
-    s.masked_points = t.masked_points;
-    s.depth_edge_points = t.depth_edge_points;
-    s.veil_points = t.veil_points;
-    s.outlier_points = t.outlier_points;
+    s.input = input_totals_;
+    s.points_skipped += input_totals_.non_finite_points;
   }
   std::lock_guard<std::mutex> results_lock(results_mutex_);
   s.fruits = accepted_->size();
@@ -264,7 +256,7 @@ void SuperellipsoidEstimator::reset() {
   problems_.clear();
   pending_.clear();  // views from before the reset: never mapped, as if integrated and cleared
   last_input_ = FruitInput();
-  input_totals_ = EstimatorStatus();
+  input_totals_ = InputTotals();
   dirty_ = false;
   accepted_ = std::make_shared<const std::vector<FruitEstimate>>();
   rejected_.clear();

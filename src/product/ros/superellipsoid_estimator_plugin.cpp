@@ -162,7 +162,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     const host::EstimatorStatus s = estimator_->status();
     const double since = last_update_ > 0 ? ros::WallTime::now().toSec() - last_update_ : -1.0;
     return {{"planner views received since start", std::to_string(planner_views_)},
-            {"views", std::to_string(s.views)},
+            {"views", std::to_string(s.input.views)},
             {"views refused", std::to_string(s.views_refused)},
             {"map blocks", std::to_string(s.blocks) + " of " + std::to_string(s.max_blocks)},
             {"map memory [MiB]", std::to_string(s.memory_mb)},
@@ -172,7 +172,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"fruits", std::to_string(s.fruits)},
             {"fruit volumes: median 90 % interval half-width [%]", medianIntervalHalfWidth()},
             {"camera frames received", std::to_string(frames_received_)},
-            {"views fed by their camera frame", std::to_string(s.camera_frames)},
+            {"views fed by their camera frame", std::to_string(s.input.camera_frames)},
             {"views fed by their own (1 cm) cloud: no frame paired", std::to_string(fallback_views_)},
             {"  of which: no frame within the tolerance", std::to_string(no_frame_)},
             {"  of which: no tf for the frame", std::to_string(no_tf_)},
@@ -184,10 +184,10 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"camera masks refused (not mono8, wrong size)", std::to_string(masks_refused_)},
             {"camera frames without their mask (red test used)", std::to_string(frames_without_mask_)},
             {"camera frames evicted unpaired", std::to_string(camera_buffer_ ? camera_buffer_->evicted() : 0)},
-            {"input: fruit points masked", std::to_string(s.masked_points)},
-            {"input: dropped at depth edges", std::to_string(s.depth_edge_points)},
-            {"input: dropped as veil points (1 cm views)", std::to_string(s.veil_points)},
-            {"input: dropped as outliers", std::to_string(s.outlier_points)},
+            {"input: fruit points masked", std::to_string(s.input.masked_points)},
+            {"input: dropped at depth edges", std::to_string(s.input.depth_edge_points)},
+            {"input: dropped as veil points (1 cm views)", std::to_string(s.input.veil_points)},
+            {"input: dropped as outliers", std::to_string(s.input.outlier_points)},
             {"seconds since the last update", since < 0 ? "never" : std::to_string(since)}};
   }
 
