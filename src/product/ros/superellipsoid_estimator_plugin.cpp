@@ -164,6 +164,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     return {{"planner views received since start", std::to_string(planner_views_)},
             {"views", std::to_string(s.input.views)},
             {"views refused", std::to_string(s.views_refused)},
+            {"views waiting for the map (integrated at the next update)", std::to_string(estimator_->pendingViews())},
             {"map blocks", std::to_string(s.blocks) + " of " + std::to_string(s.max_blocks)},
             {"map memory [MiB]", std::to_string(s.memory_mb)},
             {"points skipped (NaN/Inf, range)", std::to_string(s.points_skipped)},
