@@ -480,6 +480,40 @@ TEST(SuperellipsoidEstimator, ViewsWaitForTheUpdateInOrderAndNoneIsLost) {
   EXPECT_EQ(queued.status().blocks, 0u);
 }
 
+// A waiting view whose integration runs out of memory is lost, counted by the host as the call
+// that threw; the views queued behind it are not: the next update integrates them.
+TEST(SuperellipsoidEstimator, AViewThatRunsOutOfMemoryInTheQueueLosesOnlyItself) {
+  std::mt19937 rng(2);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  std::vector<PartialView> views;
+  for (int v = 0; v < 3; ++v) views.emplace_back(truth, Eigen::Vector3d(std::cos(2 * v), -1, std::sin(2 * v)), v);
+  SuperellipsoidEstimator queued, direct;
+  for (int v = 0; v < 3; ++v) queued.insertView(views[v].data(v));
+  {
+    FailLargeAllocations oom;
+    EXPECT_THROW(queued.update(), std::bad_alloc);
+  }
+  EXPECT_EQ(queued.pendingViews(), 2u);
+  queued.update();
+  EXPECT_EQ(queued.pendingViews(), 0u);
+  for (int v = 1; v < 3; ++v) direct.insertView(views[v].data(v));
+  direct.update();
+  // The lost view left the map before it changed it: the map is that of the two others.
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string a = (dir / "fsc_oom_queued.tsdf").string(), b = (dir / "fsc_oom_direct.tsdf").string();
+  std::string error;
+  ASSERT_TRUE(queued.saveMap(a, &error)) << error;
+  ASSERT_TRUE(direct.saveMap(b, &error)) << error;
+  auto bytes = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  EXPECT_EQ(bytes(a), bytes(b));
+  ASSERT_EQ(queued.fruits().size(), 1u);
+  std::filesystem::remove(a);
+  std::filesystem::remove(b);
+}
+
 TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAfterwards) {
   ShapeEstimatorHost host;
   host.add(std::make_unique<SuperellipsoidEstimator>());

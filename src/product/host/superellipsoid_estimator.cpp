@@ -128,10 +128,21 @@ void SuperellipsoidEstimator::integratePending(std::size_t max_views) {
     views.assign(std::make_move_iterator(pending_.begin()), std::make_move_iterator(pending_.begin() + static_cast<long>(n)));
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<long>(n));
   }
-  for (PendingView& v : views) {
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    PendingView& v = views[i];
     const bool input_refused = !v.refused.empty();
     if (!input_refused) {
-      last_ = integrator_.integrate(map_, v.fruit, v.sensor_pose);
+      try {
+        last_ = integrator_.integrate(map_, v.fruit, v.sensor_pose);
+      } catch (...) {
+        // Out of memory, say: this view is lost (the host counts and reports the call that
+        // threw); the ones after it wait for the next update, ahead of any that came since.
+        dirty_ = true;  // it may have reached some voxels
+        std::lock_guard<std::mutex> lock(pending_mutex_);
+        pending_.insert(pending_.begin(), std::make_move_iterator(views.begin() + static_cast<long>(i) + 1),
+                        std::make_move_iterator(views.end()));
+        throw;
+      }
     } else {
       last_ = IntegrationReport();
       last_.error = std::move(v.refused);
