@@ -114,8 +114,16 @@ void insertViewLatency(benchmark::State& state, const std::vector<std::size_t>& 
         }
         blocked_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
         max_waiting = std::max(max_waiting, estimator.pendingViews());
-        if (pace == Pace::kMeetsUpdate)
-          while (host.updateStatus(0).pending) std::this_thread::sleep_for(std::chrono::microseconds(100));
+        if (pace == Pace::kMeetsUpdate) {
+          const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+          while (host.updateStatus(0).pending) {
+            if (std::chrono::steady_clock::now() > deadline) {
+              state.SkipWithError("the worker took no update for 60 s");
+              return;
+            }
+            std::this_thread::sleep_for(std::chrono::microseconds(100));
+          }
+        }
       }
       host.waitForUpdates(60.0);
       fits += host.updateStatus(0).runs;

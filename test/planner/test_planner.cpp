@@ -444,7 +444,7 @@ TEST(SuperellipsoidEstimator, ViewsWaitForTheUpdateInOrderAndNoneIsLost) {
       EXPECT_EQ(queued.status().blocks, 0u);  // not yet in the map
     }
   }
-  // Five views came beyond the queue's room: the callers integrated the oldest five.
+  // Six views (of 13 inserted) came beyond the queue's room: the callers integrated the oldest six.
   EXPECT_EQ(queued.pendingViews(), SuperellipsoidEstimator::kMaxPendingViews - 1);
   EXPECT_EQ(queued.status().input.views, static_cast<std::size_t>(n + 1));
   EXPECT_GT(queued.lastIntegration().points_in, 0u);

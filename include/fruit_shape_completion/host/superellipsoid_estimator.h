@@ -4,9 +4,9 @@
 // callbacks) while another (the planner) asks for fruits and targets and a third fits. Every
 // view first goes through the fruit input stage (fruit_input_stage.h) as its source asks, in
 // the caller's thread; its fruit points then wait in a short queue and update() integrates them
-// into the map before it fits, in order. So a sensor callback never waits for the map or a fit
-// (only when kMaxPendingViews are waiting does insertView integrate the oldest itself: nothing
-// is dropped). Queries read the last update's results and never wait for a fit. reset() cancels a
+// into the map before it fits, in order. So a sensor callback waits neither for the map nor for
+// a fit, unless kMaxPendingViews are waiting: then insertView takes the map (after the worker,
+// if it holds it) and integrates the oldest itself; nothing is dropped. Queries read the last update's results and never wait for a fit. reset() cancels a
 // running fit, whose results are then never stored: nothing fitted before a reset shows after it.
 #include <fruit_shape_completion/fruit_input_stage.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
@@ -143,7 +143,7 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
   std::atomic<int> resets_waiting_{0};  // resets that set cancel_ and wait for the fit
   FruitShapePipeline pipeline_;
-  mutable std::mutex map_mutex_;  // guards the members below up to results_mutex_
+  mutable std::mutex map_mutex_;  // guards the members below up to pending_mutex_
   TsdfMap map_;
   IncrementalSurfaceExtractor surface_extractor_;
   TsdfIntegrator integrator_;

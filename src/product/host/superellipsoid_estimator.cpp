@@ -121,26 +121,28 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
 }
 
 void SuperellipsoidEstimator::integratePending(std::size_t max_views) {
-  std::vector<PendingView> views;
+  std::size_t n;
   {
     std::lock_guard<std::mutex> lock(pending_mutex_);
-    const std::size_t n = std::min(max_views, pending_.size());
-    views.assign(std::make_move_iterator(pending_.begin()), std::make_move_iterator(pending_.begin() + static_cast<long>(n)));
-    pending_.erase(pending_.begin(), pending_.begin() + static_cast<long>(n));
+    n = std::min(max_views, pending_.size());  // not the views queued meanwhile
   }
-  for (std::size_t i = 0; i < views.size(); ++i) {
-    PendingView& v = views[i];
+  // One view at a time off the front: a view whose integration throws (out of memory, say)
+  // loses only itself, and the views behind it never left the queue.
+  for (std::size_t k = 0; k < n; ++k) {
+    PendingView v;
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex_);
+      if (pending_.empty()) return;  // a reset took them
+      v = std::move(pending_.front());
+      pending_.erase(pending_.begin());
+    }
     const bool input_refused = !v.refused.empty();
     if (!input_refused) {
       try {
         last_ = integrator_.integrate(map_, v.fruit, v.sensor_pose);
-      } catch (...) {
-        // Out of memory, say: this view is lost (the host counts and reports the call that
-        // threw); the ones after it wait for the next update, ahead of any that came since.
-        dirty_ = true;  // it may have reached some voxels
-        std::lock_guard<std::mutex> lock(pending_mutex_);
-        pending_.insert(pending_.begin(), std::make_move_iterator(views.begin() + static_cast<long>(i) + 1),
-                        std::make_move_iterator(views.end()));
+      } catch (...) {  // the host counts and reports the call that threw
+        dirty_ = true;  // the view may have reached some voxels
+        ++totals_.views_refused;
         throw;
       }
     } else {
