@@ -415,6 +415,20 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   EXPECT_NEAR(est.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
 }
 
+// The bytes saveMap writes (empty, with a test failure, if it fails).
+static std::string savedMap(SuperellipsoidEstimator& est) {
+  const std::string path = (std::filesystem::temp_directory_path() / "fsc_test_saved_map.tsdf").string();
+  std::string error;
+  if (!est.saveMap(path, &error)) {
+    ADD_FAILURE() << error;
+    return {};
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::filesystem::remove(path);
+  return bytes;
+}
+
 // Views wait for the next update, which integrates them in order; a full queue makes the caller
 // integrate the oldest. The map ends bit for bit as with an update after every view, and every
 // view is counted, the refused ones and the cut ones too.
@@ -457,20 +471,9 @@ TEST(SuperellipsoidEstimator, ViewsWaitForTheUpdateInOrderAndNoneIsLost) {
   EXPECT_NE(problems[0].warning.find("NaN"), std::string::npos);
   EXPECT_TRUE(queued.takeIntegrationProblems().empty());
 
-  const auto dir = std::filesystem::temp_directory_path();
-  const std::string a = (dir / "fsc_queued.tsdf").string(), b = (dir / "fsc_direct.tsdf").string();
-  std::string error;
-  ASSERT_TRUE(queued.saveMap(a, &error)) << error;
-  ASSERT_TRUE(direct.saveMap(b, &error)) << error;
-  auto bytes = [](const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  };
-  EXPECT_EQ(bytes(a), bytes(b));
+  EXPECT_EQ(savedMap(queued), savedMap(direct));
   ASSERT_EQ(queued.fruits().size(), 1u);
   EXPECT_NEAR(queued.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
-  std::filesystem::remove(a);
-  std::filesystem::remove(b);
 
   // A reset forgets waiting views as it forgets the map.
   queued.insertView(views[0].data(0));
@@ -499,19 +502,8 @@ TEST(SuperellipsoidEstimator, AViewThatRunsOutOfMemoryInTheQueueLosesOnlyItself)
   for (int v = 1; v < 3; ++v) direct.insertView(views[v].data(v));
   direct.update();
   // The lost view left the map before it changed it: the map is that of the two others.
-  const auto dir = std::filesystem::temp_directory_path();
-  const std::string a = (dir / "fsc_oom_queued.tsdf").string(), b = (dir / "fsc_oom_direct.tsdf").string();
-  std::string error;
-  ASSERT_TRUE(queued.saveMap(a, &error)) << error;
-  ASSERT_TRUE(direct.saveMap(b, &error)) << error;
-  auto bytes = [](const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  };
-  EXPECT_EQ(bytes(a), bytes(b));
+  EXPECT_EQ(savedMap(queued), savedMap(direct));
   ASSERT_EQ(queued.fruits().size(), 1u);
-  std::filesystem::remove(a);
-  std::filesystem::remove(b);
 }
 
 TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAfterwards) {
