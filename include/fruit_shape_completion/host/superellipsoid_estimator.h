@@ -6,8 +6,9 @@
 // the caller's thread; its fruit points then wait in a short queue and update() integrates them
 // into the map before it fits, in order. So a sensor callback waits neither for the map nor for
 // a fit, unless kMaxPendingViews are waiting: then insertView takes the map (after the worker,
-// if it holds it) and integrates the oldest itself; nothing is dropped. Queries read the last update's results and never wait for a fit. reset() cancels a
-// running fit, whose results are then never stored: nothing fitted before a reset shows after it.
+// if it holds it) and integrates the oldest itself; nothing is dropped. Queries read the last
+// update's results and never wait for a fit. reset() cancels a running fit, whose results are
+// then never stored: nothing fitted before a reset shows after it.
 #include <fruit_shape_completion/fruit_input_stage.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/fruit_sightings.h>

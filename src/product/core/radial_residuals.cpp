@@ -40,9 +40,11 @@ class RadialResiduals : public ceres::CostFunction {
     dRz << -sy, -cy, 0, cy, -sy, 0, 0, 0, 0;
     Frame f;
     f.Rt = (Rz * Ry * Rx).transpose();
-    f.dRt[0] = (Rz * Ry * dRx).transpose();
-    f.dRt[1] = (Rz * dRy * Rx).transpose();
-    f.dRt[2] = (dRz * Ry * Rx).transpose();
+    if (jacobians != nullptr && jacobians[2] != nullptr) {  // only the angle Jacobian needs them
+      f.dRt[0] = (Rz * Ry * dRx).transpose();
+      f.dRt[1] = (Rz * dRy * Rx).transpose();
+      f.dRt[2] = (dRz * Ry * Rx).transpose();
+    }
     f.t = Eigen::Map<const Eigen::Vector3d>(params[1]);
     const Eigen::Index n = P_.cols();
     for (Eigen::Index i0 = 0; i0 < n; i0 += kChunk)

@@ -92,13 +92,13 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
     sightings_.addView(view.time, input.fruit);
   }
+  input.full.clear();  // the report keeps its counts, not its points
+  input.mask.clear();
   bool full;
   {
     std::lock_guard<std::mutex> lock(pending_mutex_);
     pending_.push_back({std::move(input.fruit), view.sensor_pose, input.error});
     input.fruit.clear();
-    input.full.clear();
-    input.mask.clear();
     InputTotals& t = input_totals_;
     t.camera_frames += view.source == ViewSource::kCameraFrame ? 1 : 0;
     t.roi_views += view.source == ViewSource::kRoiCloud ? 1 : 0;
