@@ -78,11 +78,12 @@ static void BM_PerViewUpdate(benchmark::State& state) {
         view.camera_frame = &v.frame;
         estimator.insertView(view);
         estimator.update();  // integrates the view, then fits
-        integrate_s += estimator.lastIntegration().seconds;
-        merge_s += estimator.lastIntegration().merge_seconds;
-        neighbourhood_s += estimator.lastIntegration().neighbourhood_seconds;
-        rays_s += estimator.lastIntegration().ray_seconds;
-        points += estimator.lastIntegration().points_in;
+        const IntegrationReport integration = estimator.lastIntegration();
+        integrate_s += integration.seconds;
+        merge_s += integration.merge_seconds;
+        neighbourhood_s += integration.neighbourhood_seconds;
+        rays_s += integration.ray_seconds;
+        points += integration.points_in;
         const PipelineStats stats = estimator.lastPipelineStats();
         surface_s += estimator.lastSurfaceSeconds();
         cluster_s += stats.cluster_seconds;
@@ -97,10 +98,10 @@ static void BM_PerViewUpdate(benchmark::State& state) {
         per_view_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
         if (view_log)
           std::fprintf(view_log, "%zu,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%zu\n", per_view_ms.size() - 1,
-                       per_view_ms.back(), 1e3 * estimator.lastIntegration().seconds, 1e3 * estimator.lastSurfaceSeconds(),
+                       per_view_ms.back(), 1e3 * integration.seconds, 1e3 * estimator.lastSurfaceSeconds(),
                        1e3 * stats.cluster_seconds, 1e3 * stats.seconds, 1e3 * stats.prior_seconds,
                        1e3 * stats.fit_seconds, 1e3 * stats.missing_seconds, stats.clusters, stats.fitted, stats.kept,
-                       estimator.fruits().size());
+                       estimator.sharedFruits()->size());
         targets = extra.size();
       }
       fruits += estimator.fruits().size();
