@@ -45,6 +45,10 @@ struct Case {
 struct Outcome {
   double coverage = 0;  // share of the surface directions some view saw
   double accuracy = 0, center_mm = 0, fit_ms = 0;
+  double prior_mm = 0;      // the matched fit's centre prior's distance from the true centre
+  // ... and how far the prior and the fit's centre lie toward the camera (along the mean of the
+  // views' directions): a half-seen fit's volume error follows its centre's depth error.
+  double prior_toward_mm = 0, fit_toward_mm = 0;
   double fit_coverage = 0;  // the matched fit's own seen share (shape_targets.h seenCoverage)
   double ratio = 0;         // true volume / fitted volume
   double rms = 0;           // the matched fit's RMS radial residual [m]
@@ -186,6 +190,12 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
       o.found = true;
       o.accuracy = 1.0 - std::abs(f.volume - c.volume) / c.volume;
       o.center_mm = 1000.0 * d;
+      o.prior_mm = 1000.0 * (f.center_prior - truth_center).norm();
+      Eigen::Vector3d look = Eigen::Vector3d::Zero();
+      for (const auto& v : c.views) look += v.dir;
+      look.normalize();
+      o.prior_toward_mm = 1000.0 * (f.center_prior - truth_center).dot(look);
+      o.fit_toward_mm = 1000.0 * (f.center() - truth_center).dot(look);
       o.fit_coverage = seenCoverage(f, params.missing.samples);
       o.ratio = c.volume / f.volume;
       o.rms = f.rms;
@@ -256,6 +266,8 @@ int main(int argc, char** argv) {
                              {"views", r.c.views.size()}, {"coverage", r.o.coverage}, {"noise_m", r.c.noise},
                              {"blur_m", r.c.blur}, {"outliers", r.c.outliers}, {"neighbour", r.c.neighbour},
                              {"found", r.o.found}, {"volume_accuracy", r.o.accuracy}, {"center_error_mm", r.o.center_mm},
+                             {"center_prior_error_mm", r.o.prior_mm},
+                             {"prior_toward_mm", r.o.prior_toward_mm}, {"fit_toward_mm", r.o.fit_toward_mm},
                              {"pipeline_ms", r.o.fit_ms}, {"fit_coverage", r.o.fit_coverage},
                              {"true_over_fitted_volume", r.o.ratio}, {"rms_m", r.o.rms}, {"fit_min_axis_m", r.o.min_axis},
                              {"fit_max_axis_m", r.o.max_axis}, {"fit_e1", r.o.e1}, {"fit_e2", r.o.e2},
