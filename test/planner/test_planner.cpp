@@ -485,6 +485,33 @@ TEST(SuperellipsoidEstimator, ViewsWaitForTheUpdateInOrderAndNoneIsLost) {
 
 // A waiting view whose integration runs out of memory is lost, counted by the host as the call
 // that threw; the views queued behind it are not: the next update integrates them.
+// Two threads insert at once, one views the input stage refuses, the other good ones: each
+// call's report is of its own view (lastInput() is whichever view came last).
+TEST(SuperellipsoidEstimator, EachInsertReportsItsOwnViewWhenThreadsInsertAtOnce) {
+  std::mt19937 rng(3);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  const PartialView good(truth, Eigen::Vector3d(0, -1, 0), 0);
+  const PointList none;
+  const ViewData refused{none, none, Eigen::Isometry3d::Identity(), 0.0, ViewSource::kCameraFrame};
+  SuperellipsoidEstimator est;
+  const int n = 200;
+  std::atomic<int> wrong{0}, go{0};
+  auto insert = [&](bool bad) {
+    go.fetch_add(1);
+    while (go.load() < 2) std::this_thread::yield();
+    for (int i = 0; i < n; ++i)
+      if (est.insertViewReporting(bad ? refused : good.data(i)).ok() == bad) wrong.fetch_add(1);
+  };
+  std::thread a(insert, true), b(insert, false);
+  a.join();
+  b.join();
+  EXPECT_EQ(wrong.load(), 0);
+  est.update();
+  const EstimatorStatus s = est.status();
+  EXPECT_EQ(s.input.views, static_cast<std::size_t>(2 * n));
+  EXPECT_EQ(s.views_refused, static_cast<std::size_t>(n));
+}
+
 TEST(SuperellipsoidEstimator, AViewThatRunsOutOfMemoryInTheQueueLosesOnlyItself) {
   std::mt19937 rng(2);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));

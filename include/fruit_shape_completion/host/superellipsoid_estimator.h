@@ -76,6 +76,9 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   explicit SuperellipsoidEstimator(const SuperellipsoidEstimatorParams& params = {});
   std::string name() const override { return "superellipsoid"; }
   void insertView(const ViewData& view) override;
+  // insertView, returning the input stage's report of this view (its points not kept): with
+  // several threads inserting, lastInput() may already be another thread's view.
+  FruitInput insertViewReporting(const ViewData& view);
   void update() override;
   std::vector<FruitEstimate> fruits() const override;
   PointList extraTargets() const override;
@@ -113,9 +116,9 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   IntegrationReport lastIntegration() const;
   // The integrated views the map refused or cut (error or warning set) since the last call,
   // oldest first, at most 2 * kMaxPendingViews: what a host logs after an update. (The input
-  // stage's refusals are lastInput()'s, right after insertView.)
+  // stage's refusals are in insertViewReporting's report.)
   std::vector<IntegrationReport> takeIntegrationProblems();
-  // The input stage's report of the last view (its points not kept).
+  // The input stage's report of the last view inserted by any thread (its points not kept).
   FruitInput lastInput() const;
   PipelineStats lastPipelineStats() const;
   // The input stage's totals include waiting views; the map's counters (refused, skipped,

@@ -80,7 +80,9 @@ FruitInput runInputStage(const FruitInputStage& stage, const ViewData& view) {
 
 }  // namespace
 
-void SuperellipsoidEstimator::insertView(const ViewData& view) {
+void SuperellipsoidEstimator::insertView(const ViewData& view) { insertViewReporting(view); }
+
+FruitInput SuperellipsoidEstimator::insertViewReporting(const ViewData& view) {
   // The stage reads only the view and its own constant parameters: no lock while it runs.
   std::shared_ptr<const FruitInputStage> stage;
   {
@@ -109,7 +111,7 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
     t.outlier_points += input.outliers;
     t.non_finite_points += input.non_finite;
     ++t.views;
-    last_input_ = std::move(input);
+    last_input_ = input;
     full = pending_.size() >= kMaxPendingViews;
   }
   // Views come faster than updates take them: this caller integrates the oldest one, so the
@@ -118,6 +120,7 @@ void SuperellipsoidEstimator::insertView(const ViewData& view) {
     std::lock_guard<std::mutex> lock(map_mutex_);
     integratePending(1);
   }
+  return input;
 }
 
 void SuperellipsoidEstimator::integratePending(std::size_t max_views) {

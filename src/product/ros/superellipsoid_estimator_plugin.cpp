@@ -194,8 +194,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
 
  private:
   void integrate(const host::ViewData& view) {
-    estimator_->insertView(view);
-    const FruitInput in = estimator_->lastInput();
+    const FruitInput in = estimator_->insertViewReporting(view);
     if (!in.ok()) ROS_WARN("%s: view skipped: %s", name_.c_str(), in.error.c_str());
   }
   // The views the last update integrated that the map refused or cut.
