@@ -16,6 +16,9 @@ struct FruitEstimate {
   double bbox_volume = 0.0;  // axis-aligned bounding box volume of the cluster's points [m^3]
   // 90 % interval of the true volume (accepted fruits; volume_interval.h) [m^3]
   double volume_lo = 0.0, volume_hi = 0.0;
+  // The true centre lies within this distance of center() in 90 % of such fits (accepted
+  // fruits; center_uncertainty.h) [m]
+  double center_r90 = 0.0;
   Eigen::Vector3d points_centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d center_prior = Eigen::Vector3d::Zero();  // w
   bool converged = false;

@@ -56,6 +56,8 @@ struct Outcome {
   double max_axis = 0;      // ... and its longest
   double e1 = 0, e2 = 0;    // ... and its exponents
   bool inside = false;      // the true volume lies in the fit's 90 % interval
+  bool center_inside = false;  // the true centre lies within the fit's 90 % centre radius
+  double center_r90_mm = 0;
   double half_width = 0;    // the interval's half-width relative to the fitted volume
   bool found = false;
 };
@@ -204,6 +206,8 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
       o.e1 = f.shape.e1;
       o.e2 = f.shape.e2;
       o.inside = c.volume >= f.volume_lo && c.volume <= f.volume_hi;
+      o.center_inside = d <= f.center_r90;
+      o.center_r90_mm = 1000.0 * f.center_r90;
       o.half_width = 0.5 * (f.volume_hi - f.volume_lo) / f.volume;
     }
   }
@@ -271,20 +275,22 @@ int main(int argc, char** argv) {
                              {"pipeline_ms", r.o.fit_ms}, {"fit_coverage", r.o.fit_coverage},
                              {"true_over_fitted_volume", r.o.ratio}, {"rms_m", r.o.rms}, {"fit_min_axis_m", r.o.min_axis},
                              {"fit_max_axis_m", r.o.max_axis}, {"fit_e1", r.o.e1}, {"fit_e2", r.o.e2},
-                             {"inside_ci90", r.o.inside}, {"ci90_relative_half_width", r.o.half_width}});
-  std::printf("%-26s %-14s %5s %8s %8s %8s %10s %10s %9s %8s %8s\n", "coverage", "kind", "n", "mean", "p5", "worst",
-              "centre mm", "centre p95", "ms (med)", "in ci90", "ci90 hw");
+                             {"inside_ci90", r.o.inside}, {"ci90_relative_half_width", r.o.half_width},
+                             {"center_inside_r90", r.o.center_inside}, {"center_r90_mm", r.o.center_r90_mm}});
+  std::printf("%-26s %-14s %5s %8s %8s %8s %10s %10s %9s %8s %8s %8s %8s\n", "coverage", "kind", "n", "mean", "p5", "worst",
+              "centre mm", "centre p95", "ms (med)", "in ci90", "ci90 hw", "in r90", "r90 mm");
   for (std::size_t b = 0; b < bins.size(); ++b)
     for (const std::string kind : {"all", "superellipsoid", "pepper"}) {
-      std::vector<double> acc, err, ms, hw;
-      int inside = 0;
+      std::vector<double> acc, err, ms, hw, r90;
+      int inside = 0, center_inside = 0;
       for (const auto& r : rows)
         if (r.o.coverage >= bins[b].first && r.o.coverage < bins[b].second && (kind == "all" || r.c.kind == kind)) {
           acc.push_back(r.o.accuracy);
           if (r.o.found) err.push_back(r.o.center_mm);
           ms.push_back(r.o.fit_ms);
           inside += r.o.inside ? 1 : 0;
-          if (r.o.found) hw.push_back(r.o.half_width);
+          center_inside += r.o.center_inside ? 1 : 0;
+          if (r.o.found) hw.push_back(r.o.half_width), r90.push_back(r.o.center_r90_mm);
         }
       if (acc.empty()) continue;
       double mean = 0, mean_err = 0;
@@ -292,12 +298,14 @@ int main(int argc, char** argv) {
       for (double e : err) mean_err += e / std::max<std::size_t>(1, err.size());
       const double p5 = quantile(acc, 0.05), worst = quantile(acc, 0.0), p95 = quantile(err, 0.95), med = quantile(ms, 0.5);
       const double in_ci = static_cast<double>(inside) / acc.size(), med_hw = quantile(hw, 0.5);
-      std::printf("%-26s %-14s %5zu %8.3f %8.3f %8.3f %10.2f %10.2f %9.2f %8.3f %8.3f\n", names[b], kind.c_str(), acc.size(),
-                  mean, p5, worst, mean_err, p95, med, in_ci, med_hw);
+      const double in_r90 = static_cast<double>(center_inside) / acc.size(), med_r90 = quantile(r90, 0.5);
+      std::printf("%-26s %-14s %5zu %8.3f %8.3f %8.3f %10.2f %10.2f %9.2f %8.3f %8.3f %8.3f %8.1f\n", names[b], kind.c_str(),
+                  acc.size(), mean, p5, worst, mean_err, p95, med, in_ci, med_hw, in_r90, med_r90);
       out["bins"].push_back({{"bin", names[b]}, {"kind", kind}, {"n", acc.size()}, {"mean_accuracy", mean},
                              {"p5_accuracy", p5}, {"worst_accuracy", worst}, {"mean_center_mm", mean_err},
                              {"p95_center_mm", p95}, {"median_ms", med}, {"ci90_coverage", in_ci},
-                             {"ci90_median_relative_half_width", med_hw}});
+                             {"ci90_median_relative_half_width", med_hw}, {"center_r90_coverage", in_r90},
+                             {"center_r90_median_mm", med_r90}});
     }
   if (!json_out.empty()) {
     std::ofstream f(json_out);

@@ -25,6 +25,8 @@ nlohmann::json fruitJson(const FruitEstimate& f) {
           {"rpy", vec3(s.rpy)},
           {"volume_m3", f.volume},
           {"volume_ci90_m3", f.accepted ? nlohmann::json{f.volume_lo, f.volume_hi} : nlohmann::json()},
+          // the true centre lies within this distance of "center" in 90 % of such fits
+          {"center_r90_m", f.accepted ? nlohmann::json(f.center_r90) : nlohmann::json()},
           // the share of the fitted surface its points cover, which the interval is made from
           {"seen_share", f.accepted ? nlohmann::json(seenCoverage(f, MissingSurfaceParams().samples)) : nlohmann::json()},
           {"bbox_volume_m3", f.bbox_volume},

@@ -316,7 +316,7 @@ int main(int argc, char** argv) {
     std::ofstream f(out + "/final_fruits_" + std::to_string(k) + ".csv");
     // seen_share, rms_mm and min_axis_mm are what the volume interval is made from.
     f << "id,x,y,z,volume_cm3,volume_ci90_lo_cm3,volume_ci90_hi_cm3,points,nearest_truth,distance_cm,seen_share,rms_mm,"
-         "min_axis_mm\n";
+         "min_axis_mm,center_r90_cm\n";
     for (const auto& e : results[k].final_fruits) {
       int nearest = -1;
       double best = 1e300;
@@ -327,7 +327,8 @@ int main(int argc, char** argv) {
       f << e.id << ',' << e.center().x() << ',' << e.center().y() << ',' << e.center().z() << ',' << e.volume * 1e6
         << ',' << e.volume_lo * 1e6 << ',' << e.volume_hi * 1e6 << ',' << e.n_points << ',' << nearest << ','
         << (nearest >= 0 ? best * 100 : -1) << ',' << seenCoverage(e, estimator.pipeline.missing.samples) << ','
-        << e.rms * 1e3 << ',' << 1e3 * std::min({e.shape.a, e.shape.b, e.shape.c}) << '\n';
+        << e.rms * 1e3 << ',' << 1e3 * std::min({e.shape.a, e.shape.b, e.shape.c}) << ',' << e.center_r90 * 1e2
+        << '\n';
     }
   }
 
@@ -411,11 +412,11 @@ int main(int argc, char** argv) {
     if (r.mask_negatives > 0) fp_rate.push_back(double(r.mask_false_positives) / double(r.mask_negatives));
   }
   const MeanStd fn = meanStd(fn_rate), fp = meanStd(fp_rate);
-  // The 90 % volume intervals of the final fruits against the truth: each fruit matched to the
-  // nearest unmatched true fruit within 3 cm (nearest pairs first).
+  // The 90 % volume intervals and centre radii of the final fruits against the truth: each fruit
+  // matched to the nearest unmatched true fruit within 3 cm (nearest pairs first).
   {
-    long inside = 0, matched = 0;
-    std::vector<double> half_widths;
+    long inside = 0, matched = 0, center_inside = 0;
+    std::vector<double> half_widths, radii;
     for (const auto& r : results) {
       std::vector<std::tuple<double, std::size_t, std::size_t>> pairs;
       for (std::size_t e = 0; e < r.final_fruits.size(); ++e)
@@ -432,9 +433,15 @@ int main(int argc, char** argv) {
         ++matched;
         inside += truth.enclosed[i].volume >= f.volume_lo && truth.enclosed[i].volume <= f.volume_hi;
         if (f.volume > 0) half_widths.push_back(0.5 * (f.volume_hi - f.volume_lo) / f.volume);
+        center_inside += d <= f.center_r90;
+        radii.push_back(f.center_r90);
       }
     }
     std::sort(half_widths.begin(), half_widths.end());
+    std::sort(radii.begin(), radii.end());
+    body["center_r90"] = {{"matched_fruits", matched},
+                          {"truth_inside", matched ? double(center_inside) / matched : 0.0},
+                          {"median_radius_m", radii.empty() ? 0.0 : radii[radii.size() / 2]}};
     body["volume_ci90"] = {{"matched_fruits", matched},
                            {"truth_inside", matched ? double(inside) / matched : 0.0},
                            {"median_relative_half_width", half_widths.empty() ? 0.0 : half_widths[half_widths.size() / 2]}};

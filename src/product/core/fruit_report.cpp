@@ -27,7 +27,8 @@ std::string number(double v, bool json) {
 const std::vector<std::string>& fruitReportColumns() {
   static const std::vector<std::string> columns = {"id", "x", "y", "z", "volume_m3", "a", "b", "c", "e1", "e2",
                                                    "roll", "pitch", "yaw", "points", "views", "first_seen",
-                                                   "last_seen", "volume_ci90_lo_m3", "volume_ci90_hi_m3"};
+                                                   "last_seen", "volume_ci90_lo_m3", "volume_ci90_hi_m3",
+                                                   "center_r90_m"};
   return columns;
 }
 
@@ -58,7 +59,8 @@ bool writeFruitReport(const std::string& path, const std::vector<FruitEstimate>&
         number(f.volume, json), number(s.a, json), number(s.b, json), number(s.c, json), number(s.e1, json),
         number(s.e2, json), number(s.rpy.x() * deg, json), number(s.rpy.y() * deg, json), number(s.rpy.z() * deg, json),
         std::to_string(f.n_points), std::to_string(seen.views), number(seen.first_seen, json),
-        number(seen.last_seen, json), number(f.volume_lo, json), number(f.volume_hi, json)};
+        number(seen.last_seen, json), number(f.volume_lo, json), number(f.volume_hi, json),
+        number(f.center_r90, json)};
     if (json) {
       out << (first ? "" : ",") << "\n  {";
       for (std::size_t i = 0; i < columns.size(); ++i) out << (i ? ", " : "") << '"' << columns[i] << "\": " << values[i];

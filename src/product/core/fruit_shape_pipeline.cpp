@@ -1,3 +1,4 @@
+#include <fruit_shape_completion/center_uncertainty.h>
 #include <fruit_shape_completion/fruit_center.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/grid_cell.h>
@@ -162,9 +163,11 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) 
   e->missing_normals = std::move(normals);
   const Superellipsoid& se = e->shape;
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
-  const VolumeInterval ci = volumeInterval90(e->volume, seenCoverage(*e, params_.missing.samples), e->rms, at_bound);
+  const double seen = seenCoverage(*e, params_.missing.samples);
+  const VolumeInterval ci = volumeInterval90(e->volume, seen, e->rms, at_bound);
   e->volume_lo = ci.lo;
   e->volume_hi = ci.hi;
+  e->center_r90 = centerRadius90(seen, e->rms, at_bound);
   stats->missing_seconds += secondsSince(start);
 }
 

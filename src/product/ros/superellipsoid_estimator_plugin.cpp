@@ -172,6 +172,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
             {"fruit volumes: median 90 % interval half-width [%]", medianIntervalHalfWidth()},
+            {"fruit centres: median 90 % radius [mm]", medianCenterRadius()},
             {"camera frames received", std::to_string(frames_received_)},
             {"views fed by their camera frame", std::to_string(s.input.camera_frames)},
             {"views fed by their own (1 cm) cloud: no frame paired", std::to_string(fallback_views_)},
@@ -474,16 +475,26 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     res.message = res.success ? "loaded " + req.file_path : error;
     return true;
   }
-  // The median relative half-width of the accepted fruits' 90 % volume intervals ("-": none).
+  // The median of a value over the accepted fruits, as text ("-": none).
+  static std::string medianText(std::vector<double> v) {
+    if (v.empty()) return "-";
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.1f", v[v.size() / 2]);
+    return text;
+  }
+  // The median relative half-width of the accepted fruits' 90 % volume intervals [%].
   std::string medianIntervalHalfWidth() const {
     std::vector<double> hw;
     for (const auto& f : estimator_->fruits())
       if (f.volume > 0.0) hw.push_back(50.0 * (f.volume_hi - f.volume_lo) / f.volume);
-    if (hw.empty()) return "-";
-    std::nth_element(hw.begin(), hw.begin() + hw.size() / 2, hw.end());
-    char text[32];
-    std::snprintf(text, sizeof(text), "%.1f", hw[hw.size() / 2]);
-    return text;
+    return medianText(std::move(hw));
+  }
+  // The median of the accepted fruits' 90 % centre radii [mm].
+  std::string medianCenterRadius() const {
+    std::vector<double> r;
+    for (const auto& f : estimator_->fruits()) r.push_back(1e3 * f.center_r90);
+    return medianText(std::move(r));
   }
   std::string totals() const {
     const host::EstimatorStatus s = estimator_->status();
