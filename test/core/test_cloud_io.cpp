@@ -263,6 +263,11 @@ TEST(FitCloudTool, JsonOutputMatchesTheFruitInTheFile) {
   EXPECT_EQ(out.at("non_finite_points").get<int>(), 1) << r.out;
   EXPECT_TRUE(fruit.at("converged").get<bool>()) << r.out;
   EXPECT_TRUE(fruit.at("rejected_reason").is_null()) << r.out;
+  // Its 90 % volume interval holds the true volume, its 90 % centre radius the true centre.
+  EXPECT_LE(fruit.at("volume_ci90_m3").at(0).get<double>(), truth.volume()) << r.out;
+  EXPECT_GE(fruit.at("volume_ci90_m3").at(1).get<double>(), truth.volume()) << r.out;
+  const auto c = fruit.at("center").get<std::vector<double>>();
+  EXPECT_LE((Eigen::Vector3d(c[0], c[1], c[2]) - truth.t).norm(), fruit.at("center_r90_m").get<double>()) << r.out;
   // The surface file holds the 300 samples of the fit, on the true surface.
   const CloudFile s = readPointCloud(surface);
   ASSERT_TRUE(s.ok()) << s.error;
