@@ -8,7 +8,7 @@ from a fitted to the true fruit centre, per RMS class and seen-share knot.
 --suite: `fit_stress --json` output; --episodes: run_trials output folders (their
 final_fruits_*.csv; one fit per true fruit, the nearest within 5 cm). Prints the table (mm) and,
 for the --check sets, the share of true centres within the radius and the median radius.
-Needs numpy (/usr/bin/python3 on Debian has it).
+Needs numpy (Debian: python3-numpy).
 """
 import argparse
 import csv
@@ -47,7 +47,8 @@ def episode_rows(dirs):
 
 
 def rms_class(rms_mm):
-    return np.digitize(rms_mm, CLASS_RMS_MM)
+    # An RMS on a class bound belongs to the class below, as in center_uncertainty.cpp.
+    return np.digitize(rms_mm, CLASS_RMS_MM, right=True)
 
 
 def make_table(pool, min_fits=20):
@@ -59,16 +60,23 @@ def make_table(pool, min_fits=20):
                 (pool[:, 2] > AT_BOUND_MM)
             if m.sum() >= min_fits:
                 table[c, k] = np.percentile(pool[m, 3], 90)
-    for c in range(3):  # a thin bin takes the class below's value
-        for k in range(len(KNOTS)):
-            if np.isnan(table[c, k]) and c > 0:
-                table[c, k] = table[c - 1, k]
+    for c in range(3):  # a thin bin takes the class below's value; in the first class, the next better-seen knot's
+        for k in range(len(KNOTS) - 1, -1, -1):
+            if np.isnan(table[c, k]):
+                if c > 0:
+                    table[c, k] = table[c - 1, k]
+                elif k + 1 < len(KNOTS):
+                    table[c, k] = table[c, k + 1]
+    if np.isnan(table).any():
+        raise SystemExit('calibrate_center_radius: too few fits for the best-seen, lowest-residual bin')
     for c in range(3):  # less seen: never smaller
         for k in range(len(KNOTS) - 2, -1, -1):
             table[c, k] = max(table[c, k], table[c, k + 1])
     for c in range(1, 3):  # a larger residual: never smaller
         table[c] = np.maximum(table[c], table[c - 1])
     at_bound = pool[pool[:, 2] <= AT_BOUND_MM]
+    if len(at_bound) < min_fits:
+        raise SystemExit('calibrate_center_radius: fewer than %d fits at the axis bound' % min_fits)
     return np.ceil(table * 2) / 2, np.ceil(np.percentile(at_bound[:, 3], 90) * 2) / 2
 
 
@@ -90,7 +98,10 @@ def main():
     ap.add_argument('--check-suite')
     ap.add_argument('--check-episodes', action='append', default=[], help='comma-separated folders (repeatable)')
     a = ap.parse_args()
-    pool = np.vstack([suite_rows(a.suite), episode_rows(a.episodes.split(','))])
+    parts = [suite_rows(a.suite), episode_rows(a.episodes.split(','))]
+    if any(len(p) == 0 for p in parts):
+        raise SystemExit('calibrate_center_radius: no fits in ' + (a.suite if len(parts[0]) == 0 else a.episodes))
+    pool = np.vstack(parts)
     table, at_bound_mm = make_table(pool)
     print('seen share knots:', KNOTS)
     for c, row in enumerate(table):

@@ -25,6 +25,9 @@ FruitEstimate fruit(int id, const Eigen::Vector3d& c, double r, bool accepted = 
   f.volume = f.shape.volume();
   f.accepted = accepted;
   f.n_points = 100 + id;
+  f.volume_lo = 0.9 * f.volume;
+  f.volume_hi = 1.2 * f.volume;
+  f.center_r90 = 0.001 * id;
   return f;
 }
 
@@ -73,6 +76,9 @@ TEST(FruitReport, CsvAndJsonHoldOneRowPerAcceptedFruitThatReadsBack) {
   EXPECT_EQ(cells[14], "4");
   EXPECT_NEAR(std::stod(cells[15]), 1.5, 1e-9);
   EXPECT_NEAR(std::stod(cells[16]), 9.25, 1e-9);
+  EXPECT_NEAR(std::stod(cells[17]), 0.9 * fruits[0].volume, 1e-12);  // the 90 % volume interval
+  EXPECT_NEAR(std::stod(cells[18]), 1.2 * fruits[0].volume, 1e-12);
+  EXPECT_NEAR(std::stod(cells[19]), 0.003, 1e-12);  // the 90 % centre radius
   // A fruit no view was matched to: 0 views, no stamps (empty cells).
   EXPECT_NE(row7.find(",0,,"), std::string::npos) << row7;
 
@@ -83,6 +89,7 @@ TEST(FruitReport, CsvAndJsonHoldOneRowPerAcceptedFruitThatReadsBack) {
   EXPECT_EQ(j["fruits"][0]["id"], 3);
   EXPECT_NEAR(j["fruits"][1]["volume_m3"].get<double>(), fruits[2].volume, 1e-12);
   EXPECT_TRUE(j["fruits"][1]["first_seen"].is_null());
+  EXPECT_NEAR(j["fruits"][1]["center_r90_m"].get<double>(), 0.007, 1e-12);
 
   EXPECT_FALSE(writeFruitReport((dir.path / "fruits.txt").string(), fruits, seen, &error));
   EXPECT_NE(error.find(".csv or .json"), std::string::npos) << error;

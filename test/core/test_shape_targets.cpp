@@ -11,6 +11,7 @@
 #include <fruit_shape_completion/volume_interval.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -175,16 +176,21 @@ TEST(VolumeInterval, AcceptedFitsOfThePipelineCarryIt) {
 }
 
 TEST(CenterUncertainty, ShrinksAsMoreOfTheFruitIsSeenAndGrowsWithTheResidual) {
-  double before = 1.0;
-  for (double seen = 0.0; seen <= 1.0; seen += 0.05) {
-    const double r = centerRadius90(seen, 0.002);
-    EXPECT_LE(r, before) << "seen " << seen;
-    before = r;
-    EXPECT_LE(centerRadius90(seen, 0.002), centerRadius90(seen, 0.0045)) << "seen " << seen;
-    EXPECT_LE(centerRadius90(seen, 0.0045), centerRadius90(seen, 0.007)) << "seen " << seen;
+  for (const double rms : {0.002, 0.0045, 0.007}) {
+    double before = 1.0;
+    for (int i = 0; i <= 20; ++i) {
+      const double seen = 0.05 * i, r = centerRadius90(seen, rms);
+      EXPECT_LE(r, before) << "seen " << seen << " rms " << rms;
+      before = r;
+    }
+  }
+  for (int i = 0; i <= 20; ++i) {
+    EXPECT_LE(centerRadius90(0.05 * i, 0.002), centerRadius90(0.05 * i, 0.0045)) << "seen " << 0.05 * i;
+    EXPECT_LE(centerRadius90(0.05 * i, 0.0045), centerRadius90(0.05 * i, 0.007)) << "seen " << 0.05 * i;
   }
   EXPECT_NEAR(centerRadius90(1.0, 0.002), 0.0025, 1e-12);  // a fruit seen all round: a few millimetres
-  EXPECT_GT(centerRadius90(0.5, 0.002), 3.0 * centerRadius90(1.0, 0.002));
+  EXPECT_NEAR(centerRadius90(0.75, 0.0045), 0.0095, 1e-12);  // a knot
+  EXPECT_NEAR(centerRadius90(0.5, 0.002), 0.01025, 1e-12);  // half way between two knots
   EXPECT_NEAR(centerRadius90(std::nan(""), std::nan("")), 0.020, 1e-12);  // nonsense in, the widest out
   EXPECT_GE(centerRadius90(1.0, 0.002, true), 0.019);  // placed by a patch of a larger fruit
 }

@@ -483,8 +483,6 @@ TEST(SuperellipsoidEstimator, ViewsWaitForTheUpdateInOrderAndNoneIsLost) {
   EXPECT_EQ(queued.status().blocks, 0u);
 }
 
-// A waiting view whose integration runs out of memory is lost, counted by the host as the call
-// that threw; the views queued behind it are not: the next update integrates them.
 // Two threads insert at once, one views the input stage refuses, the other good ones: each
 // call's report is of its own view (lastInput() is whichever view came last).
 TEST(SuperellipsoidEstimator, EachInsertReportsItsOwnViewWhenThreadsInsertAtOnce) {
@@ -512,6 +510,8 @@ TEST(SuperellipsoidEstimator, EachInsertReportsItsOwnViewWhenThreadsInsertAtOnce
   EXPECT_EQ(s.views_refused, static_cast<std::size_t>(n));
 }
 
+// A waiting view whose integration runs out of memory is lost, counted by the host as the call
+// that threw; the views queued behind it are not: the next update integrates them.
 TEST(SuperellipsoidEstimator, AViewThatRunsOutOfMemoryInTheQueueLosesOnlyItself) {
   std::mt19937 rng(2);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));

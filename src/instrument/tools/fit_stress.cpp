@@ -290,7 +290,10 @@ int main(int argc, char** argv) {
           ms.push_back(r.o.fit_ms);
           inside += r.o.inside ? 1 : 0;
           center_inside += r.o.center_inside ? 1 : 0;
-          if (r.o.found) hw.push_back(r.o.half_width), r90.push_back(r.o.center_r90_mm);
+          if (r.o.found) {
+            hw.push_back(r.o.half_width);
+            r90.push_back(r.o.center_r90_mm);
+          }
         }
       if (acc.empty()) continue;
       double mean = 0, mean_err = 0;

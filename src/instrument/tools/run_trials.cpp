@@ -314,7 +314,8 @@ int main(int argc, char** argv) {
   }
   for (int k = 0; k < trials; ++k) {
     std::ofstream f(out + "/final_fruits_" + std::to_string(k) + ".csv");
-    // seen_share, rms_mm and min_axis_mm are what the volume interval is made from.
+    // seen_share, rms_mm and min_axis_mm are what the volume interval and the centre radius are
+    // made from.
     f << "id,x,y,z,volume_cm3,volume_ci90_lo_cm3,volume_ci90_hi_cm3,points,nearest_truth,distance_cm,seen_share,rms_mm,"
          "min_axis_mm,center_r90_cm\n";
     for (const auto& e : results[k].final_fruits) {

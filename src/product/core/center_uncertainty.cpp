@@ -11,7 +11,8 @@ namespace {
 // class of the RMS radial residual (the volume interval's classes), pooled over the fit stress
 // suite (1000 fruits, seed 1) and 160 paper-profile episodes of scenarios 1 and 2 (seeds 1-40,
 // with and without shape targets; one fit per true fruit, the nearest within 5 cm). A bin with
-// fewer than 20 fits takes the class below's value; made monotone (less seen or a larger
+// fewer than 20 fits takes the class below's value (scripts/calibrate_center_radius.py makes the
+// table); made monotone (less seen or a larger
 // residual, never smaller) and rounded up to half a millimetre.
 constexpr double kSeen[] = {0.45, 0.55, 0.65, 0.75, 0.84, 0.92, 0.97, 1.00};
 constexpr int kKnots = 8;

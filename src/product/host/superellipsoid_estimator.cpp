@@ -157,8 +157,8 @@ void SuperellipsoidEstimator::integratePending(std::size_t max_views) {
     totals_.points_skipped += last_.non_finite + last_.out_of_range;
     totals_.rays_outside += last_.outside_map;
     totals_.rays_over_budget += last_.over_budget;
-    // Kept for the caller's log (the input stage's refusals were its to see at insertView);
-    // beyond the cap they are still in the counters above.
+    // Kept for the caller's log (the input stage's refusals were in insertViewReporting's
+    // report); beyond the cap they are still in the counters above.
     const bool problem = !input_refused && (!last_.ok() || !last_.warning.empty());
     if (problem && problems_.size() < 2 * kMaxPendingViews) problems_.push_back(last_);
   }

@@ -30,6 +30,7 @@
 #include <cstdio>
 #include <memory>
 #include <mutex>
+#include <utility>
 
 namespace fruit_shape_completion {
 
@@ -161,6 +162,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     check();
     const host::EstimatorStatus s = estimator_->status();
     const double since = last_update_ > 0 ? ros::WallTime::now().toSec() - last_update_ : -1.0;
+    const auto trust = medianTrust();
     return {{"planner views received since start", std::to_string(planner_views_)},
             {"views", std::to_string(s.input.views)},
             {"views refused", std::to_string(s.views_refused)},
@@ -171,8 +173,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"rays outside the map", std::to_string(s.rays_outside)},
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
-            {"fruit volumes: median 90 % interval half-width [%]", medianIntervalHalfWidth()},
-            {"fruit centres: median 90 % radius [mm]", medianCenterRadius()},
+            {"fruit volumes: median 90 % interval half-width [%]", trust.first},
+            {"fruit centres: median 90 % radius [mm]", trust.second},
             {"camera frames received", std::to_string(frames_received_)},
             {"views fed by their camera frame", std::to_string(s.input.camera_frames)},
             {"views fed by their own (1 cm) cloud: no frame paired", std::to_string(fallback_views_)},
@@ -483,18 +485,15 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     std::snprintf(text, sizeof(text), "%.1f", v[v.size() / 2]);
     return text;
   }
-  // The median relative half-width of the accepted fruits' 90 % volume intervals [%].
-  std::string medianIntervalHalfWidth() const {
-    std::vector<double> hw;
-    for (const auto& f : estimator_->fruits())
+  // The medians of the accepted fruits' 90 % volume interval half-widths [%] and 90 % centre
+  // radii [mm].
+  std::pair<std::string, std::string> medianTrust() const {
+    std::vector<double> hw, r;
+    for (const auto& f : *estimator_->sharedFruits()) {
       if (f.volume > 0.0) hw.push_back(50.0 * (f.volume_hi - f.volume_lo) / f.volume);
-    return medianText(std::move(hw));
-  }
-  // The median of the accepted fruits' 90 % centre radii [mm].
-  std::string medianCenterRadius() const {
-    std::vector<double> r;
-    for (const auto& f : estimator_->fruits()) r.push_back(1e3 * f.center_r90);
-    return medianText(std::move(r));
+      r.push_back(1e3 * f.center_r90);
+    }
+    return {medianText(std::move(hw)), medianText(std::move(r))};
   }
   std::string totals() const {
     const host::EstimatorStatus s = estimator_->status();
