@@ -8,6 +8,7 @@
 #include <fruit_shape_completion/euclidean_clustering.h>
 #include <fruit_shape_completion/fruit_estimate.h>
 #include <fruit_shape_completion/missing_surface.h>
+#include <fruit_shape_completion/parallel_jobs.h>
 #include <fruit_shape_completion/superellipsoid_fit.h>
 #include <fruit_shape_completion/surface_blocks.h>
 #include <fruit_shape_completion/surface_normals.h>
@@ -63,6 +64,10 @@ struct PipelineStats {
   double prior_seconds = 0.0;    // normals and centre priors of the clusters fitted
   double fit_seconds = 0.0;      // the superellipsoid fits (the solver)
   double missing_seconds = 0.0;  // predicted unseen surfaces
+
+  // Adds the counts and times a fit job made (fitted, kept, splits, prior, fit and missing
+  // seconds) to these.
+  void addJob(const PipelineStats& job);
 };
 
 class FruitShapePipeline {
@@ -109,8 +114,8 @@ class FruitShapePipeline {
   // by this share: more of the fruit seen may tell otherwise.
   static constexpr double kRecheckGrowth = 0.25;
 
-  // The fit functions below may run on several threads at once (one cluster each): they read
-  // tracks_ and params_ and count into their own `stats`.
+  // The fit functions below may run on several threads at once (one cluster, or one half of a
+  // split, each): they read tracks_ and params_ and count into their own `stats`.
   // The points' surface normals (estimateNormals, oriented toward their centroid).
   std::vector<Eigen::Vector3d> normalsOf(const PointList& points, PipelineStats* stats) const;
   // One fit of a cluster (or part) with its points' normals.
@@ -169,6 +174,8 @@ class FruitShapePipeline {
   std::vector<FruitEstimate> fruits_;
   PipelineStats stats_;
   int next_id_ = 0;
+  // The fit threads of the running update, which a split's halves may borrow (null outside it).
+  ThreadBudget* budget_ = nullptr;
 };
 
 }  // namespace fruit_shape_completion

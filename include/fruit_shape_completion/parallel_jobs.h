@@ -15,4 +15,39 @@ namespace fruit_shape_completion {
 void runParallelJobs(std::size_t n, int threads, const std::function<void(std::size_t)>& job,
                      const std::atomic<bool>* cancel = nullptr);
 
+// The threads a set of jobs may keep busy. A view's slowest cluster is often one long chain of
+// split tries while the other threads have run out of clusters: a job whose work divides in two
+// independent halves lends one half to a new thread while fewer than `threads` are busy.
+class ThreadBudget {
+ public:
+  explicit ThreadBudget(int threads) : threads_(threads) {}
+  // A thread busy for the object's lifetime, whether or not the budget had room.
+  class Busy {
+   public:
+    explicit Busy(ThreadBudget* budget) : budget_(budget) {
+      if (budget_) budget_->busy_.fetch_add(1);
+    }
+    ~Busy() {
+      if (budget_) budget_->busy_.fetch_sub(1);
+    }
+    Busy(const Busy&) = delete;
+    Busy& operator=(const Busy&) = delete;
+
+   private:
+    ThreadBudget* budget_;
+  };
+  // One more busy thread if the budget has room.
+  bool tryAcquire();
+  void release() { busy_.fetch_sub(1); }
+
+ private:
+  int threads_;
+  std::atomic<int> busy_{0};
+};
+
+// first() in the caller's thread and second() beside it on a new thread if `budget` (may be
+// null) has room, else after first(). Returns when both are done; rethrows the first exception
+// either threw.
+void runPair(ThreadBudget* budget, const std::function<void()>& first, const std::function<void()>& second);
+
 }  // namespace fruit_shape_completion

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <stdexcept>
+#include <thread>
 #include <fstream>
 #include <limits>
 #include <random>
@@ -455,6 +456,60 @@ TEST(FruitShapePipeline, FitsOnSeveralThreadsGiveTheFruitsOfOne) {
   for (const auto& f : parallel.fruits()) accepted += f.accepted;
   EXPECT_EQ(accepted, 8);
   EXPECT_GE(splits, 1);  // the touching pair
+}
+
+// A view of one touching pair alone: one cluster, whose split halves run on two threads. The
+// fruits are exactly those of one thread.
+TEST(FruitShapePipeline, ASplitsHalvesOnTwoThreadsGiveTheFruitsOfOne) {
+  const auto pair = touchingPair();
+  PipelineParams one_thread;
+  one_thread.threads = 1;
+  PipelineParams two = one_thread;
+  two.threads = 2;
+  FruitShapePipeline serial(one_thread), parallel(two);
+  for (int view = 0; view < 3; ++view) {
+    const PointList cloud = scanPair(pair, 0.5 + 0.2 * view, 80 + view, 90 + view);
+    const auto& a = serial.update(cloud);
+    const auto& b = parallel.update(cloud);
+    if (view == 0) EXPECT_GE(parallel.lastStats().fitted, 3);  // the whole and a split's halves
+    EXPECT_EQ(parallel.lastStats().fitted, serial.lastStats().fitted);
+    EXPECT_EQ(parallel.lastStats().splits, serial.lastStats().splits);
+    ASSERT_EQ(a.size(), b.size()) << "view " << view;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].accepted, b[i].accepted);
+      EXPECT_EQ(a[i].volume, b[i].volume) << "view " << view << ", fruit " << i;
+      EXPECT_EQ(a[i].center(), b[i].center());
+      EXPECT_EQ(a[i].rms, b[i].rms);
+    }
+  }
+}
+
+TEST(ParallelJobs, APairRunsBesideOnlyWhileTheBudgetHasRoomAndFailuresComeBack) {
+  const std::thread::id caller = std::this_thread::get_id();
+  std::thread::id first_on, second_on;
+  ThreadBudget budget(2);
+  {
+    const ThreadBudget::Busy busy(&budget);  // the caller's job
+    runPair(&budget, [&]() { first_on = std::this_thread::get_id(); }, [&]() { second_on = std::this_thread::get_id(); });
+    EXPECT_EQ(first_on, caller);
+    EXPECT_NE(second_on, caller);  // one thread was free
+    const ThreadBudget::Busy other(&budget);  // both busy now
+    runPair(&budget, [&]() { first_on = std::this_thread::get_id(); }, [&]() { second_on = std::this_thread::get_id(); });
+    EXPECT_EQ(first_on, caller);
+    EXPECT_EQ(second_on, caller);
+  }
+  runPair(nullptr, [&]() { first_on = std::this_thread::get_id(); }, [&]() { second_on = std::this_thread::get_id(); });
+  EXPECT_EQ(second_on, caller);
+  // Either half's failure comes back once both are done; the budget is whole again after.
+  std::atomic<int> done{0};
+  EXPECT_THROW(runPair(&budget, [&]() { ++done; }, [&]() { ++done, throw std::runtime_error("second"); }),
+               std::runtime_error);
+  EXPECT_THROW(runPair(&budget, [&]() { ++done, throw std::runtime_error("first"); }, [&]() { ++done; }),
+               std::runtime_error);
+  EXPECT_EQ(done.load(), 4);
+  EXPECT_TRUE(budget.tryAcquire());
+  EXPECT_TRUE(budget.tryAcquire());
+  EXPECT_FALSE(budget.tryAcquire());
 }
 
 TEST(ParallelJobs, EachJobRunsOnceAndAFailureOrACancelStopsTheRest) {

@@ -89,6 +89,15 @@ void PipelineParams::validate() const {
   fit.validate();
 }
 
+void PipelineStats::addJob(const PipelineStats& job) {
+  fitted += job.fitted;
+  kept += job.kept;
+  splits += job.splits;
+  prior_seconds += job.prior_seconds;
+  fit_seconds += job.fit_seconds;
+  missing_seconds += job.missing_seconds;
+}
+
 FruitShapePipeline::FruitShapePipeline(const PipelineParams& params) : params_(params) {
   params_.validate();
 }
@@ -311,10 +320,17 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
   for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
   std::stable_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(jobs.size()),
                    [&](std::size_t l, std::size_t r) { return jobs[l].points.size() > jobs[r].points.size(); });
+  ThreadBudget budget(params_.threads);
+  struct Lend {  // the budget is the split's to borrow from while the jobs run, and only then
+    ThreadBudget*& to;
+    Lend(ThreadBudget*& to, ThreadBudget* budget) : to(to) { to = budget; }
+    ~Lend() { to = nullptr; }
+  } lend(budget_, &budget);
   try {
     runParallelJobs(
         order.size(), params_.threads,
         [&](std::size_t i) {
+          const ThreadBudget::Busy busy(&budget);
           const std::size_t j = order[i];
           if (j < jobs.size())
             fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]);
@@ -335,13 +351,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
         t.cluster_points = jobs[j].points.size();
         pending.push_back(std::move(t));
       }
-    const PipelineStats& js = job_stats[j];
-    stats_.fitted += js.fitted;
-    stats_.kept += js.kept;
-    stats_.splits += js.splits;
-    stats_.prior_seconds += js.prior_seconds;
-    stats_.fit_seconds += js.fit_seconds;
-    stats_.missing_seconds += js.missing_seconds;
+    stats_.addJob(job_stats[j]);
   }
 
   assignIds(&pending, &reused);

@@ -48,4 +48,44 @@ void runParallelJobs(std::size_t n, int threads, const std::function<void(std::s
   if (error) std::rethrow_exception(error);
 }
 
+bool ThreadBudget::tryAcquire() {
+  int busy = busy_.load();
+  while (busy < threads_)
+    if (busy_.compare_exchange_weak(busy, busy + 1)) return true;
+  return false;
+}
+
+void runPair(ThreadBudget* budget, const std::function<void()>& first, const std::function<void()>& second) {
+  if (budget == nullptr || !budget->tryAcquire()) {
+    first();
+    second();
+    return;
+  }
+  std::exception_ptr first_error, second_error;
+  std::thread helper;
+  try {
+    helper = std::thread([&]() {
+      try {
+        second();
+      } catch (...) {
+        second_error = std::current_exception();
+      }
+      budget->release();
+    });
+  } catch (...) {  // no thread to be had: both here
+    budget->release();
+    first();
+    second();
+    return;
+  }
+  try {
+    first();
+  } catch (...) {
+    first_error = std::current_exception();
+  }
+  helper.join();
+  if (first_error) std::rethrow_exception(first_error);
+  if (second_error) std::rethrow_exception(second_error);
+}
+
 }  // namespace fruit_shape_completion

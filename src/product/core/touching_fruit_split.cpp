@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 namespace fruit_shape_completion {
 
@@ -199,8 +200,16 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
     const int k = bestOverlap(occupiedCells(half));
     return k >= 0 ? &tracks_[k] : nullptr;
   };
-  FruitEstimate first[2] = {estimateCluster(part[0], part_normals[0], -1, previousOf(part[0]), stats),
-                            estimateCluster(part[1], part_normals[1], -1, previousOf(part[1]), stats)};
+  // The halves are independent: the second may run beside the first on a thread the update's
+  // other clusters no longer need.
+  FruitEstimate first[2];
+  PipelineStats half_stats[2];
+  auto fitHalf = [&](int k) {
+    first[k] = estimateCluster(part[k], part_normals[k], -1, previousOf(part[k]), &half_stats[k]);
+  };
+  runPair(budget_, [&]() { fitHalf(0); }, [&]() { fitHalf(1); });
+  stats->addJob(half_stats[0]);
+  stats->addJob(half_stats[1]);
   stats->fitted += 2;
   const std::size_t half_points[2] = {part[0].size(), part[1].size()};
   if (first[0].converged && first[1].converged) {
@@ -212,17 +221,22 @@ FruitShapePipeline::Parts FruitShapePipeline::estimateWithSplit(const PointList&
       return out;
     }
   }
-  Parts parts;
-  for (int k = 0; k < 2; ++k) {
+  Parts sub[2];
+  PipelineStats sub_stats[2];
+  auto finishHalf = [&](int k) {
     // A half whose trial fit still explains its reassigned points keeps that fit.
     if (params_.refit_tolerance > 0.0 && stillFits(first[k], half_points[k], part[k])) {
-      parts.emplace_back(part[k], keptEstimate(first[k], part[k]));
-      parts.back().second.refitted = true;
-      continue;
+      sub[k].emplace_back(part[k], keptEstimate(first[k], part[k]));
+      sub[k].back().second.refitted = true;
+      return;
     }
-    auto sub = estimateWithSplit(part[k], part_normals[k], depth + 1, stats);
-    parts.insert(parts.end(), sub.begin(), sub.end());
-  }
+    sub[k] = estimateWithSplit(part[k], part_normals[k], depth + 1, &sub_stats[k]);
+  };
+  runPair(budget_, [&]() { finishHalf(0); }, [&]() { finishHalf(1); });
+  Parts parts = std::move(sub[0]);
+  parts.insert(parts.end(), std::make_move_iterator(sub[1].begin()), std::make_move_iterator(sub[1].end()));
+  stats->addJob(sub_stats[0]);
+  stats->addJob(sub_stats[1]);
   double squares = 0.0;
   int accepted = 0;
   std::vector<const Superellipsoid*> fits;
