@@ -419,17 +419,41 @@ TEST(FruitShapePipeline, ATouchingPairStaysSplitWhenTheHalfSeenNeighboursFitBulg
   EXPECT_NEAR(f->volume, true_volume, 0.1 * true_volume);
 }
 
+namespace {
+
+PipelineParams onThreads(int threads) {
+  PipelineParams p;
+  p.threads = threads;
+  return p;
+}
+
+// The same update of `cloud` by a one-thread and a several-thread pipeline: the same fits,
+// splits and fruits, bit for bit.
+void expectTheSameUpdate(FruitShapePipeline& serial, FruitShapePipeline& parallel, const PointList& cloud, int view) {
+  const auto& a = serial.update(cloud);
+  const auto& b = parallel.update(cloud);
+  EXPECT_EQ(parallel.lastStats().fitted, serial.lastStats().fitted) << "view " << view;
+  EXPECT_EQ(parallel.lastStats().splits, serial.lastStats().splits) << "view " << view;
+  ASSERT_EQ(a.size(), b.size()) << "view " << view;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].id, b[i].id);
+    EXPECT_EQ(a[i].accepted, b[i].accepted);
+    EXPECT_EQ(a[i].volume, b[i].volume) << "view " << view << ", fruit " << i;
+    EXPECT_EQ(a[i].center(), b[i].center());
+    EXPECT_EQ(a[i].rms, b[i].rms);
+    EXPECT_EQ(a[i].missing_surface.size(), b[i].missing_surface.size());
+  }
+}
+
+}  // namespace
+
 // The changed clusters are fitted on several threads: the fruits are exactly those of one
 // thread, view after view (new fruits, fruits seen more, a touching pair split and split again).
 TEST(FruitShapePipeline, FitsOnSeveralThreadsGiveTheFruitsOfOne) {
   std::vector<Superellipsoid> truth;
   for (int i = 0; i < 6; ++i) truth.push_back(fruitAt(Eigen::Vector3d(0.15 * i, 0.05 * (i % 2), 0.6), 40 + i));
   const auto pair = touchingPair();
-  PipelineParams one_thread;
-  one_thread.threads = 1;
-  PipelineParams four = one_thread;
-  four.threads = 4;
-  FruitShapePipeline serial(one_thread), parallel(four);
+  FruitShapePipeline serial(onThreads(1)), parallel(onThreads(4));
   int splits = 0;
   for (int view = 0; view < 4; ++view) {
     PointList cloud = scanPair(pair, 0.5 + 0.15 * view, 60 + view, 70 + view);
@@ -437,20 +461,9 @@ TEST(FruitShapePipeline, FitsOnSeveralThreadsGiveTheFruitsOfOne) {
       const PointList pts = scan(truth[i], 0.4 + 0.2 * view, Eigen::Vector3d(0.3 * view, 1, 0), 100 * view + i);
       cloud.insert(cloud.end(), pts.begin(), pts.end());
     }
-    const auto& a = serial.update(cloud);
-    const auto& b = parallel.update(cloud);
+    expectTheSameUpdate(serial, parallel, cloud, view);
     EXPECT_GE(parallel.lastStats().fitted, view == 0 ? 8 : 1);
-    EXPECT_EQ(parallel.lastStats().fitted, serial.lastStats().fitted);
-    EXPECT_EQ(parallel.lastStats().splits, serial.lastStats().splits);
     splits += parallel.lastStats().splits;
-    ASSERT_EQ(a.size(), b.size()) << "view " << view;
-    for (std::size_t i = 0; i < a.size(); ++i) {
-      EXPECT_EQ(a[i].id, b[i].id);
-      EXPECT_EQ(a[i].accepted, b[i].accepted);
-      EXPECT_EQ(a[i].volume, b[i].volume) << "view " << view << ", fruit " << i;
-      EXPECT_EQ(a[i].center(), b[i].center());
-      EXPECT_EQ(a[i].missing_surface.size(), b[i].missing_surface.size());
-    }
   }
   int accepted = 0;
   for (const auto& f : parallel.fruits()) accepted += f.accepted;
@@ -462,25 +475,10 @@ TEST(FruitShapePipeline, FitsOnSeveralThreadsGiveTheFruitsOfOne) {
 // fruits are exactly those of one thread.
 TEST(FruitShapePipeline, ASplitsHalvesOnTwoThreadsGiveTheFruitsOfOne) {
   const auto pair = touchingPair();
-  PipelineParams one_thread;
-  one_thread.threads = 1;
-  PipelineParams two = one_thread;
-  two.threads = 2;
-  FruitShapePipeline serial(one_thread), parallel(two);
+  FruitShapePipeline serial(onThreads(1)), parallel(onThreads(2));
   for (int view = 0; view < 3; ++view) {
-    const PointList cloud = scanPair(pair, 0.5 + 0.2 * view, 80 + view, 90 + view);
-    const auto& a = serial.update(cloud);
-    const auto& b = parallel.update(cloud);
+    expectTheSameUpdate(serial, parallel, scanPair(pair, 0.5 + 0.2 * view, 80 + view, 90 + view), view);
     if (view == 0) EXPECT_GE(parallel.lastStats().fitted, 3);  // the whole and a split's halves
-    EXPECT_EQ(parallel.lastStats().fitted, serial.lastStats().fitted);
-    EXPECT_EQ(parallel.lastStats().splits, serial.lastStats().splits);
-    ASSERT_EQ(a.size(), b.size()) << "view " << view;
-    for (std::size_t i = 0; i < a.size(); ++i) {
-      EXPECT_EQ(a[i].accepted, b[i].accepted);
-      EXPECT_EQ(a[i].volume, b[i].volume) << "view " << view << ", fruit " << i;
-      EXPECT_EQ(a[i].center(), b[i].center());
-      EXPECT_EQ(a[i].rms, b[i].rms);
-    }
   }
 }
 
