@@ -173,6 +173,16 @@ TEST(VolumeInterval, AcceptedFitsOfThePipelineCarryIt) {
   EXPECT_GE(fruits[0].volume_hi, a.volume());
   EXPECT_GT(fruits[0].center_r90, 0.0);
   EXPECT_LE((fruits[0].center() - a.t).norm(), fruits[0].center_r90);
+  // No unseen surface asked for (no targets): the fruit still says how far to trust it.
+  PipelineParams no_samples;
+  no_samples.missing.samples = 0;
+  FruitShapePipeline without(no_samples);
+  const auto& same = without.update(cloud);
+  ASSERT_EQ(same.size(), 1u);
+  EXPECT_TRUE(same[0].missing_surface.empty());
+  EXPECT_EQ(same[0].volume_lo, fruits[0].volume_lo);
+  EXPECT_EQ(same[0].volume_hi, fruits[0].volume_hi);
+  EXPECT_EQ(same[0].center_r90, fruits[0].center_r90);
 }
 
 TEST(CenterUncertainty, ShrinksAsMoreOfTheFruitIsSeenAndGrowsWithTheResidual) {

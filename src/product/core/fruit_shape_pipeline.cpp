@@ -161,18 +161,25 @@ FruitEstimate FruitShapePipeline::keptEstimate(const FruitEstimate& fit, const P
 void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) const {
   e->missing_surface.clear();
   e->missing_normals.clear();
-  if (!e->accepted || params_.missing.samples <= 0) return;
+  if (!e->accepted) return;
   const auto start = std::chrono::steady_clock::now();
-  PointList surface = predictMissingSurface(e->shape, e->points, params_.missing);
-  // Computed once per fit, not at every hand-over of the targets.
-  PointList normals;
-  normals.reserve(surface.size());
-  for (const auto& s : surface) normals.push_back(outwardNormal(e->shape, s));
-  e->missing_surface = std::move(surface);
-  e->missing_normals = std::move(normals);
+  // With no samples asked for (no targets wanted), the seen share that the volume interval and
+  // the centre radius are read from is still measured, on the default samples, which are then
+  // not kept.
+  MissingSurfaceParams measured = params_.missing;
+  if (measured.samples <= 0) measured.samples = MissingSurfaceParams().samples;
+  PointList surface = predictMissingSurface(e->shape, e->points, measured);
+  const double seen = std::clamp(1.0 - static_cast<double>(surface.size()) / measured.samples, 0.0, 1.0);
+  if (params_.missing.samples > 0) {
+    // Computed once per fit, not at every hand-over of the targets.
+    PointList normals;
+    normals.reserve(surface.size());
+    for (const auto& s : surface) normals.push_back(outwardNormal(e->shape, s));
+    e->missing_surface = std::move(surface);
+    e->missing_normals = std::move(normals);
+  }
   const Superellipsoid& se = e->shape;
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
-  const double seen = seenCoverage(*e, params_.missing.samples);
   const VolumeInterval ci = volumeInterval90(e->volume, seen, e->rms, at_bound);
   e->volume_lo = ci.lo;
   e->volume_hi = ci.hi;
