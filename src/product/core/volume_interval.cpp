@@ -1,7 +1,8 @@
 #include <fruit_shape_completion/volume_interval.h>
 
+#include "seen_share_table.h"
+
 #include <algorithm>
-#include <cmath>
 
 namespace fruit_shape_completion {
 
@@ -14,19 +15,14 @@ namespace {
 // of the earlier pool (episodes of the planner without that score, which saw more fruits from
 // one side). Made monotone (less seen or a larger residual, never narrower) and rounded
 // outward. The residual separates what the seen share cannot: blurred depth and real capsicum
-// shapes that no superellipsoid matches exactly leave 5-6 mm.
-struct Knot {
-  double seen, lo, hi;
-};
-constexpr int kKnotsPerClass = 8;
-constexpr double kClassRms[] = {0.0035, 0.0055};  // upper RMS bounds of the first two classes [m]
-constexpr Knot kKnots[3][kKnotsPerClass] = {
-    {{0.45, 0.60, 1.34}, {0.55, 0.85, 1.34}, {0.65, 0.85, 1.30}, {0.75, 0.85, 1.30},
-     {0.84, 0.85, 1.25}, {0.92, 0.85, 1.16}, {0.97, 0.86, 1.12}, {1.00, 0.91, 1.07}},
-    {{0.45, 0.47, 1.80}, {0.55, 0.60, 1.80}, {0.65, 0.68, 1.30}, {0.75, 0.73, 1.30},
-     {0.84, 0.77, 1.25}, {0.92, 0.81, 1.16}, {0.97, 0.83, 1.14}, {1.00, 0.83, 1.10}},
-    {{0.45, 0.32, 1.80}, {0.55, 0.45, 1.80}, {0.65, 0.60, 1.76}, {0.75, 0.64, 1.76},
-     {0.84, 0.64, 1.76}, {0.92, 0.72, 1.16}, {0.97, 0.74, 1.15}, {1.00, 0.78, 1.15}}};
+// shapes that no superellipsoid matches exactly leave 5-6 mm. The 5th percentiles at the knots
+// (seen_share_table.h), per residual class, then the 95th:
+constexpr double kLo[seen_share_table::kClasses][seen_share_table::kKnots] = {{0.60, 0.85, 0.85, 0.85, 0.85, 0.85, 0.86, 0.91},
+                                                     {0.47, 0.60, 0.68, 0.73, 0.77, 0.81, 0.83, 0.83},
+                                                     {0.32, 0.45, 0.60, 0.64, 0.64, 0.72, 0.74, 0.78}};
+constexpr double kHi[seen_share_table::kClasses][seen_share_table::kKnots] = {{1.34, 1.34, 1.30, 1.30, 1.25, 1.16, 1.12, 1.07},
+                                                     {1.80, 1.80, 1.30, 1.30, 1.25, 1.16, 1.14, 1.10},
+                                                     {1.80, 1.80, 1.76, 1.76, 1.76, 1.16, 1.15, 1.15}};
 // A fit whose shortest axis rests on its lower bound was sized by the bound, not by its points
 // (a small patch of a larger fruit): its volume is nearly a floor. Pooled percentiles of such fits.
 constexpr double kAtBoundLo = 0.80, kAtBoundHi = 3.0;
@@ -34,22 +30,8 @@ constexpr double kAtBoundLo = 0.80, kAtBoundHi = 3.0;
 }  // namespace
 
 VolumeInterval volumeInterval90(double volume, double seen_share, double rms, bool size_at_bound) {
-  const double s = std::isfinite(seen_share) ? std::clamp(seen_share, 0.0, 1.0) : 0.0;
-  const int c = !std::isfinite(rms) ? 2 : rms <= kClassRms[0] ? 0 : rms <= kClassRms[1] ? 1 : 2;
-  const Knot* knots = kKnots[c];
-  const int n = kKnotsPerClass;
-  double lo = knots[0].lo, hi = knots[0].hi;
-  if (s >= knots[n - 1].seen) {
-    lo = knots[n - 1].lo, hi = knots[n - 1].hi;
-  } else if (s > knots[0].seen) {
-    for (int k = 1; k < n; ++k)
-      if (s <= knots[k].seen) {
-        const double f = (s - knots[k - 1].seen) / (knots[k].seen - knots[k - 1].seen);
-        lo = knots[k - 1].lo + f * (knots[k].lo - knots[k - 1].lo);
-        hi = knots[k - 1].hi + f * (knots[k].hi - knots[k - 1].hi);
-        break;
-      }
-  }
+  const int c = seen_share_table::residualClass(rms);
+  double lo = seen_share_table::read(kLo[c], seen_share), hi = seen_share_table::read(kHi[c], seen_share);
   if (size_at_bound) {
     lo = std::min(lo, kAtBoundLo);
     hi = std::max(hi, kAtBoundHi);
