@@ -24,17 +24,13 @@ class ThreadBudget {
   // A thread busy for the object's lifetime, whether or not the budget had room.
   class Busy {
    public:
-    explicit Busy(ThreadBudget* budget) : budget_(budget) {
-      if (budget_) budget_->busy_.fetch_add(1);
-    }
-    ~Busy() {
-      if (budget_) budget_->busy_.fetch_sub(1);
-    }
+    explicit Busy(ThreadBudget& budget) : budget_(budget) { budget_.busy_.fetch_add(1); }
+    ~Busy() { budget_.busy_.fetch_sub(1); }
     Busy(const Busy&) = delete;
     Busy& operator=(const Busy&) = delete;
 
    private:
-    ThreadBudget* budget_;
+    ThreadBudget& budget_;
   };
   // One more busy thread if the budget has room.
   bool tryAcquire();

@@ -6,6 +6,7 @@
 // the predicted surface, so that a ray to it ends in the space a camera must see.
 #include <fruit_shape_completion/fruit_estimate.h>
 
+#include <cstddef>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -43,6 +44,8 @@ Eigen::Vector3d outwardNormal(const Superellipsoid& shape, const Point& s);
 
 // The share of a fruit's surface samples that were seen (1 - missing / samples).
 double seenCoverage(const FruitEstimate& fruit, int surface_samples);
+// ... of `missing_samples` not seen among `surface_samples`.
+double seenCoverage(std::size_t missing_samples, int surface_samples);
 
 // The targets of the accepted fruits (missing_surface computed from `surface_samples` samples).
 ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int surface_samples,

@@ -487,11 +487,11 @@ TEST(ParallelJobs, APairRunsBesideOnlyWhileTheBudgetHasRoomAndFailuresComeBack) 
   std::thread::id first_on, second_on;
   ThreadBudget budget(2);
   {
-    const ThreadBudget::Busy busy(&budget);  // the caller's job
+    const ThreadBudget::Busy busy(budget);  // the caller's job
     runPair(&budget, [&]() { first_on = std::this_thread::get_id(); }, [&]() { second_on = std::this_thread::get_id(); });
     EXPECT_EQ(first_on, caller);
     EXPECT_NE(second_on, caller);  // one thread was free
-    const ThreadBudget::Busy other(&budget);  // both busy now
+    const ThreadBudget::Busy other(budget);  // both busy now
     runPair(&budget, [&]() { first_on = std::this_thread::get_id(); }, [&]() { second_on = std::this_thread::get_id(); });
     EXPECT_EQ(first_on, caller);
     EXPECT_EQ(second_on, caller);

@@ -169,7 +169,7 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) 
   MissingSurfaceParams measured = params_.missing;
   if (measured.samples <= 0) measured.samples = MissingSurfaceParams().samples;
   PointList surface = predictMissingSurface(e->shape, e->points, measured);
-  const double seen = std::clamp(1.0 - static_cast<double>(surface.size()) / measured.samples, 0.0, 1.0);
+  const double seen = seenCoverage(surface.size(), measured.samples);
   if (params_.missing.samples > 0) {
     // Computed once per fit, not at every hand-over of the targets.
     PointList normals;
@@ -337,7 +337,7 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
     runParallelJobs(
         order.size(), params_.threads,
         [&](std::size_t i) {
-          const ThreadBudget::Busy busy(&budget);
+          const ThreadBudget::Busy busy(budget);
           const std::size_t j = order[i];
           if (j < jobs.size())
             fitted[j] = fitChangedCluster(jobs[j].points, jobs[j].cells, reused, &job_stats[j]);

@@ -22,8 +22,12 @@ void ShapeTargetParams::validate() const {
 }
 
 double seenCoverage(const FruitEstimate& fruit, int surface_samples) {
+  return seenCoverage(fruit.missing_surface.size(), surface_samples);
+}
+
+double seenCoverage(std::size_t missing_samples, int surface_samples) {
   if (surface_samples <= 0) return 1.0;
-  return std::clamp(1.0 - static_cast<double>(fruit.missing_surface.size()) / surface_samples, 0.0, 1.0);
+  return std::clamp(1.0 - static_cast<double>(missing_samples) / surface_samples, 0.0, 1.0);
 }
 
 // By central differences of the implicit function: also where the closed form is singular (the
