@@ -19,6 +19,9 @@ struct FruitEstimate {
   // The true centre lies within this distance of center() in 90 % of such fits (accepted
   // fruits; center_uncertainty.h) [m]
   double center_r90 = 0.0;
+  // The spread of log(volume) that the fit's residuals and Jacobian alone imply (accepted
+  // fruits; volume_interval.h logVolumeSpread): large where the points leave the size free.
+  double log_volume_spread = 0.0;
   Eigen::Vector3d points_centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d center_prior = Eigen::Vector3d::Zero();  // w
   bool converged = false;

@@ -1,10 +1,10 @@
 #pragma once
-// How far to trust a fitted volume: a 90 % interval from the share of the fitted surface that
-// was seen and how closely the fit explains its points. The interval is an empirical model: the
-// 5th and 95th percentiles of true / fitted volume as a function of the seen share and the RMS
-// residual, pooled over the fit stress suite (fit_stress, random
-// fruits with noise, blur, outliers and touching neighbours) and scenario episodes; checked on
-// another draw and other episodes (docs/benchmarks.md, "The volume interval").
+// How far to trust a fitted volume: a 90 % interval from how far the fit's points pin its size
+// down (the log-volume spread), the share of the fitted surface that was seen and how closely
+// the fit explains its points. The interval is an empirical model: the 5th and 95th percentiles
+// of true / fitted volume as functions of these, pooled over the fit stress suite (fit_stress,
+// random fruits with noise, blur, outliers and touching neighbours) and scenario episodes;
+// checked on another draw and other episodes (docs/benchmarks.md, "The volume interval").
 #include <fruit_shape_completion/fruit_estimate.h>
 
 namespace fruit_shape_completion {
@@ -13,9 +13,19 @@ struct VolumeInterval {
   double lo = 0.0, hi = 0.0;  // [m^3]
 };
 
+// The standard deviation of log(volume) implied by the fit's data alone, to first order: the
+// residual variance times the inverse Gauss-Newton matrix of the radial residuals over the 11
+// parameters (on at most `max_points` of the points, evenly strided, as the fit's final solve),
+// carried through the volume's derivatives. It is not an uncertainty by itself (it leaves out
+// the shape's own mismatch), but it says which fits the data pins down: a half-seen fruit whose
+// depth the points leave free gets a large one. Non-finite when it cannot be computed.
+double logVolumeSpread(const PointList& points, const Superellipsoid& shape, int max_points);
+
 // The 90 % interval of a fitted `volume` whose surface was seen over `seen_share` of its samples.
-// `rms`: the fit's RMS radial residual [m]. `size_at_bound`: the fit's shortest axis rests on
-// the fit's lower bound (FitParams::min_axis).
-VolumeInterval volumeInterval90(double volume, double seen_share, double rms, bool size_at_bound = false);
+// `rms`: the fit's RMS radial residual [m]. `log_volume_spread`: logVolumeSpread of the fit.
+// `size_at_bound`: the fit's shortest axis rests on the fit's lower bound (FitParams::min_axis).
+// Non-finite inputs read as the least favourable values.
+VolumeInterval volumeInterval90(double volume, double seen_share, double rms, double log_volume_spread,
+                                bool size_at_bound = false);
 
 }  // namespace fruit_shape_completion

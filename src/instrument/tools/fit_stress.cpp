@@ -59,6 +59,7 @@ struct Outcome {
   bool center_inside = false;  // the true centre lies within the fit's 90 % centre radius
   double center_r90_mm = 0;
   double half_width = 0;    // the interval's half-width relative to the fitted volume
+  double log_volume_spread = 0;  // the matched fit's (volume_interval.h)
   bool found = false;
 };
 
@@ -209,6 +210,7 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
       o.center_inside = d <= f.center_r90;
       o.center_r90_mm = 1000.0 * f.center_r90;
       o.half_width = 0.5 * (f.volume_hi - f.volume_lo) / f.volume;
+      o.log_volume_spread = f.log_volume_spread;
     }
   }
   return o;
@@ -276,7 +278,8 @@ int main(int argc, char** argv) {
                              {"true_over_fitted_volume", r.o.ratio}, {"rms_m", r.o.rms}, {"fit_min_axis_m", r.o.min_axis},
                              {"fit_max_axis_m", r.o.max_axis}, {"fit_e1", r.o.e1}, {"fit_e2", r.o.e2},
                              {"inside_ci90", r.o.inside}, {"ci90_relative_half_width", r.o.half_width},
-                             {"center_inside_r90", r.o.center_inside}, {"center_r90_mm", r.o.center_r90_mm}});
+                             {"center_inside_r90", r.o.center_inside}, {"center_r90_mm", r.o.center_r90_mm},
+                             {"log_volume_spread", r.o.log_volume_spread}});
   std::printf("%-26s %-14s %5s %8s %8s %8s %10s %10s %9s %8s %8s %8s %8s\n", "coverage", "kind", "n", "mean", "p5", "worst",
               "centre mm", "centre p95", "ms (med)", "in ci90", "ci90 hw", "in r90", "r90 mm");
   for (std::size_t b = 0; b < bins.size(); ++b)

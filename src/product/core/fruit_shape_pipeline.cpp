@@ -180,7 +180,8 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) 
   }
   const Superellipsoid& se = e->shape;
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
-  const VolumeInterval ci = volumeInterval90(e->volume, seen, e->rms, at_bound);
+  e->log_volume_spread = logVolumeSpread(e->points, se, params_.fit.max_points);
+  const VolumeInterval ci = volumeInterval90(e->volume, seen, e->rms, e->log_volume_spread, at_bound);
   e->volume_lo = ci.lo;
   e->volume_hi = ci.hi;
   e->center_r90 = centerRadius90(seen, e->rms, at_bound);

@@ -1,37 +1,97 @@
 #include <fruit_shape_completion/volume_interval.h>
 
-#include "seen_share_table.h"
+#include <fruit_shape_completion/radial_residuals.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 namespace fruit_shape_completion {
 
 namespace {
 
-// Seen share -> (5th, 95th percentile) of true / fitted volume, per class of the fit's RMS
-// radial residual, pooled over the stress suite (1000 fruits, seed 1) and 80 paper-profile
-// episodes of scenarios 1 and 2 (seeds 1-40) under the upstream-emulating planner with views
-// scored by the predicted surface they see; a bin with fewer than 20 such fits keeps the values
-// of the earlier pool (episodes of the planner without that score, which saw more fruits from
-// one side). Made monotone (less seen or a larger residual, never narrower) and rounded
-// outward. The residual separates what the seen share cannot: blurred depth and real capsicum
-// shapes that no superellipsoid matches exactly leave 5-6 mm. The 5th percentiles at the knots
-// (seen_share_table.h), per residual class, then the 95th:
-constexpr double kLo[seen_share_table::kClasses][seen_share_table::kKnots] = {{0.60, 0.85, 0.85, 0.85, 0.85, 0.85, 0.86, 0.91},
-                                                     {0.47, 0.60, 0.68, 0.73, 0.77, 0.81, 0.83, 0.83},
-                                                     {0.32, 0.45, 0.60, 0.64, 0.64, 0.72, 0.74, 0.78}};
-constexpr double kHi[seen_share_table::kClasses][seen_share_table::kKnots] = {{1.34, 1.34, 1.30, 1.30, 1.25, 1.16, 1.12, 1.07},
-                                                     {1.80, 1.80, 1.30, 1.30, 1.25, 1.16, 1.14, 1.10},
-                                                     {1.80, 1.80, 1.76, 1.76, 1.76, 1.16, 1.15, 1.15}};
+// The 5th and 95th percentiles of log(true / fitted volume) as linear functions of (1, log of the
+// fit's log-volume spread, seen share, RMS radial residual beyond 3.5 mm, beyond 5.5 mm [mm]), by
+// linear quantile regression (scripts/calibrate_volume_interval.py) on a pool of three groups
+// that weigh alike: the stress suite (fit_stress --fruits 1000 --seed 1: synthetic
+// superellipsoids and lobed peppers), 160 paper-profile episodes of scenarios 1 and 2 (real
+// capsicum meshes; seeds 1-40, with and without shape targets) and 40 of procedural:1 and :2
+// (another fruit shape), all under the upstream-emulating planner. Each group alone misleads on
+// the others: how closely a superellipsoid's volume matches a fully seen fruit depends on the
+// fruit's shape family. The slopes' signs are held so that a larger spread or residual never
+// narrows the interval and more of the fruit seen never widens it. The spread says which fits
+// the points pin down (a half-seen fruit whose depth they leave free); the residual what the
+// spread cannot: blurred depth and shapes that no superellipsoid matches exactly.
+constexpr int kTerms = 5;
+constexpr double kLo[kTerms] = {-0.5737, -0.1159, 0.0, -0.0146, -0.0044};
+constexpr double kHi[kTerms] = {0.8193, 0.1067, -0.2923, 0.0, 0.0482};
+constexpr double kRmsKneeMm[2] = {3.5, 5.5};
+// The ranges the pool covers: the model reads its inputs clamped into them (below the smallest
+// spread a straight line would leave the fit itself outside its interval).
+constexpr double kSpreadMin = 0.01, kSpreadMax = 0.5, kRmsMinMm = 1.0, kRmsMaxMm = 8.0;
 // A fit whose shortest axis rests on its lower bound was sized by the bound, not by its points
 // (a small patch of a larger fruit): its volume is nearly a floor. Pooled percentiles of such fits.
-constexpr double kAtBoundLo = 0.80, kAtBoundHi = 3.0;
+constexpr double kAtBoundLo = 0.81, kAtBoundHi = 2.9;
 
 }  // namespace
 
-VolumeInterval volumeInterval90(double volume, double seen_share, double rms, bool size_at_bound) {
-  const int c = seen_share_table::residualClass(rms);
-  double lo = seen_share_table::read(kLo[c], seen_share), hi = seen_share_table::read(kHi[c], seen_share);
+double logVolumeSpread(const PointList& points, const Superellipsoid& shape, int max_points) {
+  constexpr int kParams = 11;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  PointList used;
+  const std::size_t n = points.size();
+  const std::size_t m = max_points > 0 ? std::min<std::size_t>(n, static_cast<std::size_t>(max_points)) : n;
+  used.reserve(m);
+  const double step = m > 0 ? static_cast<double>(n) / static_cast<double>(m) : 1.0;
+  for (std::size_t i = 0; i < m; ++i) {
+    const Point& p = points[static_cast<std::size_t>(static_cast<double>(i) * step)];
+    if (p.allFinite()) used.push_back(p);
+  }
+  if (used.size() <= static_cast<std::size_t>(kParams) || !shape.isFinite()) return nan;
+  Eigen::VectorXd residuals;
+  Eigen::MatrixXd J;
+  evaluateRadialResiduals(used, shape, &residuals, &J);
+  // No fit the model was made from explained its points closer than 1.75 mm RMS (a 4 mm TSDF
+  // surface never lies closer to the true one): a cleaner cloud, a mesh say, must not read as
+  // more certain than any of them, so the residual's spread is held at least there.
+  constexpr double kMinSigma = 0.00175;
+  const double variance =
+      std::max(kMinSigma * kMinSigma, residuals.squaredNorm() / static_cast<double>(used.size() - kParams));
+  Eigen::Matrix<double, kParams, kParams> H = J.transpose() * J;
+  // A parameter the points do not move at all (an exponent along a flat patch) would make H
+  // singular: a tiny ridge leaves it very uncertain instead of undefined.
+  H.diagonal().array() += 1e-9 * H.diagonal().maxCoeff();
+  // d log V / d parameter: 1/a, 1/b, 1/c, the exponents' numerically; the pose does not enter.
+  Eigen::Matrix<double, kParams, 1> g = Eigen::Matrix<double, kParams, 1>::Zero();
+  g(0) = 1.0 / shape.a;
+  g(1) = 1.0 / shape.b;
+  g(2) = 1.0 / shape.c;
+  const double h = 1e-5;
+  for (int k = 0; k < 2; ++k) {
+    Superellipsoid up = shape, down = shape;
+    (k == 0 ? up.e1 : up.e2) += h;
+    (k == 0 ? down.e1 : down.e2) -= h;
+    g(3 + k) = (std::log(up.volume()) - std::log(down.volume())) / (2.0 * h);
+  }
+  const double spread2 = variance * g.dot(H.ldlt().solve(g));
+  return std::isfinite(spread2) && spread2 >= 0.0 ? std::sqrt(spread2) : nan;
+}
+
+VolumeInterval volumeInterval90(double volume, double seen_share, double rms, double log_volume_spread,
+                                bool size_at_bound) {
+  // Nonsense reads as the least favourable: nothing seen, the largest spread and residual.
+  const double spread = std::isfinite(log_volume_spread) ? std::clamp(log_volume_spread, kSpreadMin, kSpreadMax) : kSpreadMax;
+  const double seen = std::isfinite(seen_share) ? std::clamp(seen_share, 0.0, 1.0) : 0.0;
+  const double rms_mm = std::isfinite(rms) ? std::clamp(1e3 * rms, kRmsMinMm, kRmsMaxMm) : kRmsMaxMm;
+  const double x[kTerms] = {1.0, std::log(spread), seen, std::max(0.0, rms_mm - kRmsKneeMm[0]),
+                            std::max(0.0, rms_mm - kRmsKneeMm[1])};
+  double log_lo = 0.0, log_hi = 0.0;
+  for (int k = 0; k < kTerms; ++k) {
+    log_lo += kLo[k] * x[k];
+    log_hi += kHi[k] * x[k];
+  }
+  double lo = std::exp(log_lo), hi = std::exp(log_hi);
   if (size_at_bound) {
     lo = std::min(lo, kAtBoundLo);
     hi = std::max(hi, kAtBoundHi);
