@@ -16,9 +16,10 @@ struct VolumeInterval {
 // The standard deviation of log(volume) implied by the fit's data alone, to first order: the
 // residual variance times the inverse Gauss-Newton matrix of the radial residuals over the 11
 // parameters (on at most `max_points` of the points, evenly strided, as the fit's final solve),
-// carried through the volume's derivatives. It is not an uncertainty by itself (it leaves out
-// the shape's own mismatch), but it says which fits the data pins down: a half-seen fruit whose
-// depth the points leave free gets a large one. Non-finite when it cannot be computed.
+// carried through the volume's derivatives, the residual taken as at least 1.75 mm RMS. It is
+// not an uncertainty by itself (it leaves out the shape's own mismatch), but it says which fits
+// the data pins down: a half-seen fruit whose depth the points leave free gets a large one.
+// Non-finite when it cannot be computed (fewer than 12 finite points).
 double logVolumeSpread(const PointList& points, const Superellipsoid& shape, int max_points);
 
 // The 90 % interval of a fitted `volume` whose surface was seen over `seen_share` of its samples.

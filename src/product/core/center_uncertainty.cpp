@@ -31,9 +31,9 @@ double read(const double* values, double seen_share) {
 }
 
 // Seen share -> 90th percentile of the distance from the fitted to the true centre [mm], per
-// class of the RMS radial residual, pooled over the fit stress
-// suite (1000 fruits, seed 1) and 160 paper-profile episodes of scenarios 1 and 2 (seeds 1-40,
-// with and without shape targets; one fit per true fruit, the nearest within 5 cm). A bin with
+// class of the RMS radial residual, pooled over the fit stress suite (1000 fruits, seed 1) and
+// 160 paper-profile episodes of scenarios 1 and 2 (seeds 1-40, with and without shape targets;
+// one fit per true fruit, the nearest within 5 cm). A bin with
 // fewer than 20 fits takes the class below's value (scripts/calibrate_center_radius.py makes the
 // table); made monotone (less seen or a larger residual, never smaller) and rounded up to half a
 // millimetre.
