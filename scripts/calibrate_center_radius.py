@@ -11,11 +11,11 @@ for the --check sets, the share of true centres within the radius and the median
 Needs numpy (Debian: python3-numpy).
 """
 import argparse
-import csv
-import glob
 import json
 
 import numpy as np
+
+from episode_fits import matched_fits
 
 KNOTS = [0.45, 0.55, 0.65, 0.75, 0.84, 0.92, 0.97, 1.0]
 CLASS_RMS_MM = [3.5, 5.5]
@@ -33,17 +33,8 @@ def suite_rows(path):
 
 
 def episode_rows(dirs):
-    rows = []
-    for d in dirs:
-        for name in sorted(glob.glob(d + '/final_fruits_*.csv')):
-            best = {}
-            for r in csv.DictReader(open(name)):
-                t, dist = int(r['nearest_truth']), float(r['distance_cm'])
-                if t >= 0 and dist <= 5 and (t not in best or dist < best[t][0]):
-                    best[t] = (dist, r)
-            for dist, r in best.values():
-                rows.append((float(r['seen_share']), float(r['rms_mm']), float(r['min_axis_mm']), 10 * dist, 1.0))
-    return np.array(rows)
+    return np.array([(float(r['seen_share']), float(r['rms_mm']), float(r['min_axis_mm']), 10 * dist, 1.0)
+                     for r, _, dist in matched_fits(dirs)])
 
 
 def rms_class(rms_mm):

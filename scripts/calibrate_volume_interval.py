@@ -15,13 +15,12 @@ true volumes inside the interval and the median half-width for fruits seen half 
 Needs numpy and scipy (Debian: python3-numpy, python3-scipy).
 """
 import argparse
-import csv
-import glob
 import json
-import os
 
 import numpy as np
 from scipy.optimize import linprog
+
+from episode_fits import matched_fits
 
 AT_BOUND_MM = 20.5  # a shortest axis within 2.5 % of min_axis (20 mm), as the pipeline decides
 # The spread and the residual are clamped into these ranges before the model reads them (C++
@@ -45,18 +44,10 @@ def suite_rows(path):
 
 def episode_rows(dirs):
     rows = []
-    for d in dirs:
-        truth = {int(r['truth']): float(r['volume_cm3']) for r in csv.DictReader(open(os.path.join(d, 'truth.csv')))}
-        for name in sorted(glob.glob(d + '/final_fruits_*.csv')):
-            best = {}
-            for r in csv.DictReader(open(name)):
-                t, dist = int(r['nearest_truth']), float(r['distance_cm'])
-                if t >= 0 and dist <= 5 and (t not in best or dist < best[t][0]):
-                    best[t] = (dist, r)
-            for t, (dist, r) in best.items():
-                seen = float(r['seen_share'])
-                rows.append((seen, float(r['rms_mm']), float(r['min_axis_mm']), float(r['log_volume_spread']),
-                             truth[t] / float(r['volume_cm3']), seen))
+    for r, truth, _ in matched_fits(dirs):
+        seen = float(r['seen_share'])
+        rows.append((seen, float(r['rms_mm']), float(r['min_axis_mm']), float(r['log_volume_spread']),
+                     float(truth['volume_cm3']) / float(r['volume_cm3']), seen))
     return np.array(rows)
 
 
