@@ -10,14 +10,16 @@ the axis bound.
 
 --suite: `fit_stress --json` output; --episodes (repeatable, one group each): run_trials output
 folders (their final_fruits_*.csv and truth.csv; one fit per true fruit, the nearest within
-5 cm). The suite and each group of episodes weigh alike. Prints the coefficients and, for the --check sets, the share of
-true volumes inside the interval and the median half-width for fruits seen half or more.
-Needs numpy and scipy (Debian: python3-numpy, python3-scipy).
+5 cm). The suite and each group of episodes weigh alike. Prints the coefficients and, for the
+--check sets, the share of true volumes inside the interval and the median half-width for fruits
+seen half or more (the suite: by the share of the surface its views saw; episodes: by the fit's
+seen share). Needs numpy and scipy (Debian: python3-numpy, python3-scipy).
 """
 import argparse
 import json
 
 import numpy as np
+from scipy import sparse
 from scipy.optimize import linprog
 
 from episode_fits import matched_fits
@@ -35,10 +37,12 @@ QUANTILES = (0.05, 0.95)
 def suite_rows(path):
     """(seen share, rms mm, min axis mm, spread, true / fitted volume, true coverage) of the found fruits."""
     rows = []
+    def number(v):  # JSON writes a non-finite value as null
+        return float('nan') if v is None else float(v)
     for f in json.load(open(path))['fruits']:
         if f['found']:
-            rows.append((f['fit_coverage'], 1e3 * f['rms_m'], 1e3 * f['fit_min_axis_m'], f['log_volume_spread'],
-                         f['true_over_fitted_volume'], f['coverage']))
+            rows.append((number(f['fit_coverage']), 1e3 * number(f['rms_m']), 1e3 * number(f['fit_min_axis_m']),
+                         number(f['log_volume_spread']), number(f['true_over_fitted_volume']), number(f['coverage'])))
     return np.array(rows)
 
 
@@ -54,7 +58,8 @@ def episode_rows(dirs):
 def features(rows):
     spread = np.where(np.isfinite(rows[:, 3]), rows[:, 3], SPREAD[1])
     rms = np.clip(np.where(np.isfinite(rows[:, 1]), rows[:, 1], RMS_MM[1]), *RMS_MM)
-    return np.column_stack([np.ones(len(rows)), np.log(np.clip(spread, *SPREAD)), np.clip(rows[:, 0], 0, 1),
+    seen = np.clip(np.where(np.isfinite(rows[:, 0]), rows[:, 0], 0.0), 0, 1)  # as the C++: nonsense reads as unseen
+    return np.column_stack([np.ones(len(rows)), np.log(np.clip(spread, *SPREAD)), seen,
                             np.maximum(rms - RMS_KNEES_MM[0], 0), np.maximum(rms - RMS_KNEES_MM[1], 0)])
 
 
@@ -63,7 +68,7 @@ def quantile_regression(X, y, w, q, signs):
     < 0 keeps it <= 0, 0 leaves it free."""
     n, p = X.shape
     cost = np.concatenate([np.zeros(p), q * w, (1 - q) * w])
-    A = np.hstack([X, np.eye(n), -np.eye(n)])
+    A = sparse.hstack([sparse.csr_matrix(X), sparse.identity(n), -sparse.identity(n)], format='csr')
     bounds = [(0, None) if s > 0 else (None, 0) if s < 0 else (None, None) for s in signs] + [(0, None)] * (2 * n)
     r = linprog(cost, A_eq=A, b_eq=y, bounds=bounds, method='highs')
     if not r.success:
@@ -72,6 +77,9 @@ def quantile_regression(X, y, w, q, signs):
 
 
 def make_model(parts):
+    for p in parts:
+        if (p[:, 2] > AT_BOUND_MM).sum() < 20:
+            raise SystemExit('calibrate_volume_interval: a group has fewer than 20 fits off the axis bound')
     rows = np.vstack([p[p[:, 2] > AT_BOUND_MM] for p in parts])
     w = np.concatenate([np.full((p[:, 2] > AT_BOUND_MM).sum(), 1.0 / (p[:, 2] > AT_BOUND_MM).sum()) for p in parts])
     X, y = features(rows), np.log(rows[:, 4])
@@ -80,6 +88,8 @@ def make_model(parts):
     lo = quantile_regression(X, y, w, QUANTILES[0], [0, -1, 1, -1, -1])
     hi = quantile_regression(X, y, w, QUANTILES[1], [0, 1, -1, 1, 1])
     at_bound = np.vstack([p[p[:, 2] <= AT_BOUND_MM] for p in parts])
+    if len(at_bound) < 20:
+        raise SystemExit('calibrate_volume_interval: fewer than 20 fits at the axis bound')
     # Rounded as volume_interval.cpp carries them (the bound's ends outward), so that the checks
     # below are the C++ model's.
     return (np.round(lo, 4), np.round(hi, 4), np.floor(100 * np.percentile(at_bound[:, 4], 5)) / 100,

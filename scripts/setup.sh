@@ -14,7 +14,7 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev vcstool
   libstd-srvs-dev libdiagnostic-updater-dev libtopic-tools-dev
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure rosbash
-  python3-numpy python3-matplotlib
+  python3-numpy python3-matplotlib python3-scipy
   # rostopic echo / rviz of what the package publishes
   python3-rostopic python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-visualization-msgs
   python3-diagnostic-msgs python3-std-srvs python3-genmsg

@@ -4,6 +4,7 @@
 #include <fruit_shape_completion/shared_points.h>
 #include <fruit_shape_completion/superellipsoid.h>
 
+#include <limits>
 #include <string>
 
 namespace fruit_shape_completion {
@@ -20,8 +21,9 @@ struct FruitEstimate {
   // fruits; center_uncertainty.h) [m]
   double center_r90 = 0.0;
   // The spread of log(volume) that the fit's residuals and Jacobian alone imply (accepted
-  // fruits; volume_interval.h logVolumeSpread): large where the points leave the size free.
-  double log_volume_spread = 0.0;
+  // fruits, else NaN; volume_interval.h logVolumeSpread): large where the points leave the size
+  // free.
+  double log_volume_spread = std::numeric_limits<double>::quiet_NaN();
   Eigen::Vector3d points_centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d center_prior = Eigen::Vector3d::Zero();  // w
   bool converged = false;

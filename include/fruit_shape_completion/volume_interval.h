@@ -3,8 +3,9 @@
 // down (the log-volume spread), the share of the fitted surface that was seen and how closely
 // the fit explains its points. The interval is an empirical model: the 5th and 95th percentiles
 // of true / fitted volume as functions of these, pooled over the fit stress suite (fit_stress,
-// random fruits with noise, blur, outliers and touching neighbours) and scenario episodes;
-// checked on another draw and other episodes (docs/benchmarks.md, "The volume interval").
+// random fruits with noise, blur, outliers and touching neighbours), scenario episodes and
+// procedural scenes; checked on another draw and other episodes (docs/benchmarks.md, "The volume
+// interval, third version").
 #include <fruit_shape_completion/fruit_estimate.h>
 
 namespace fruit_shape_completion {
@@ -13,14 +14,17 @@ struct VolumeInterval {
   double lo = 0.0, hi = 0.0;  // [m^3]
 };
 
+// The points logVolumeSpread is taken on (at most; evenly strided from the finite ones).
+constexpr int kSpreadPoints = 300;
+
 // The standard deviation of log(volume) implied by the fit's data alone, to first order: the
 // residual variance times the inverse Gauss-Newton matrix of the radial residuals over the 11
-// parameters (on at most `max_points` of the points, evenly strided, as the fit's final solve),
-// carried through the volume's derivatives, the residual taken as at least 1.75 mm RMS. It is
-// not an uncertainty by itself (it leaves out the shape's own mismatch), but it says which fits
-// the data pins down: a half-seen fruit whose depth the points leave free gets a large one.
-// Non-finite when it cannot be computed (fewer than 12 finite points).
-double logVolumeSpread(const PointList& points, const Superellipsoid& shape, int max_points);
+// parameters (on kSpreadPoints of the points), carried through the volume's derivatives, the
+// residual taken as at least 1.75 mm RMS. It is not an uncertainty by itself (it leaves out the
+// shape's own mismatch), but it says which fits the data pins down: a half-seen fruit whose
+// depth the points leave free gets a large one. Non-finite when it cannot be computed (fewer
+// than 12 finite points).
+double logVolumeSpread(const PointList& points, const Superellipsoid& shape);
 
 // The 90 % interval of a fitted `volume` whose surface was seen over `seen_share` of its samples.
 // `rms`: the fit's RMS radial residual [m]. `log_volume_spread`: logVolumeSpread of the fit.

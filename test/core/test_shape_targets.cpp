@@ -1,8 +1,8 @@
 // Which predicted surface becomes the planner's targets (shape_targets.h): settled fruits hand
 // over nothing, a cap spreads each fruit's targets, targets sit `offset` outside the surface
-// along its outward normal and carry that normal as the side to view them from. And the 90 %
-// volume interval and centre radius, which come from the same seen share (volume_interval.h,
-// center_uncertainty.h).
+// along its outward normal and carry that normal as the side to view them from. And how far to
+// trust a fit: the 90 % volume interval with the log-volume spread it is read from
+// (volume_interval.h), and the centre radius (center_uncertainty.h).
 #include <fruit_shape_completion/center_uncertainty.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
@@ -181,7 +181,7 @@ TEST(VolumeInterval, TheSpreadFollowsTheScatterOfRepeatedFits) {
   truth.a = 0.035, truth.b = 0.03, truth.c = 0.04, truth.e1 = 0.7, truth.e2 = 0.6;
   truth.t = Eigen::Vector3d(0.1, 0.2, 0.6);
   truth.rpy = Eigen::Vector3d(0.3, -0.2, 0.5);
-  auto scanned = [&](double noise, double seen, unsigned seed) {
+  auto scanned = [&](double noise, double seen, unsigned seed, bool thin = true) {
     ScanParams scan;
     scan.noise_sigma = noise;
     scan.visible_fraction = seen;
@@ -189,6 +189,7 @@ TEST(VolumeInterval, TheSpreadFollowsTheScatterOfRepeatedFits) {
     scan.view_dir = Eigen::Vector3d(1, 0.3, 0.2);
     scan.seed = seed;
     PointList pts = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+    if (!thin) return pts;
     PointList some;  // a few hundred points, as the fit's final solve uses
     for (std::size_t i = 0; i < pts.size(); i += std::max<std::size_t>(1, pts.size() / 300)) some.push_back(pts[i]);
     return some;
@@ -199,7 +200,7 @@ TEST(VolumeInterval, TheSpreadFollowsTheScatterOfRepeatedFits) {
     const FitResult fit = fitSuperellipsoid(pts, truth.t, FitParams(), &truth);
     ASSERT_TRUE(fit.accepted) << fit.reason;
     logs.push_back(std::log(fit.shape.volume()));
-    spreads.push_back(logVolumeSpread(pts, fit.shape, 300));
+    spreads.push_back(logVolumeSpread(pts, fit.shape));
   }
   double mean = 0, var = 0, spread = 0;
   for (double l : logs) mean += l / logs.size();
@@ -208,32 +209,38 @@ TEST(VolumeInterval, TheSpreadFollowsTheScatterOfRepeatedFits) {
   EXPECT_GT(spread, 0.5 * std::sqrt(var));
   EXPECT_LT(spread, 2.0 * std::sqrt(var));
   std::printf("[ report   ] scatter of log volume over 30 fits %.4f, mean spread %.4f\n", std::sqrt(var), spread);
-  const double quiet = logVolumeSpread(scanned(0.002, 1.0, 7), truth, 300);
-  const double noisy = logVolumeSpread(scanned(0.004, 1.0, 7), truth, 300);
+  const double quiet = logVolumeSpread(scanned(0.0025, 1.0, 7), truth);
+  const double noisy = logVolumeSpread(scanned(0.005, 1.0, 7), truth);
   EXPECT_NEAR(noisy / quiet, 2.0, 0.3);
-  EXPECT_GT(logVolumeSpread(scanned(0.002, 0.4, 7), truth, 300), 1.5 * quiet);
+  EXPECT_GT(logVolumeSpread(scanned(0.0025, 0.4, 7), truth), 1.5 * quiet);
   // A cloud cleaner than any the interval was made from (1.75 mm RMS at best) reads as that.
-  const double clean = logVolumeSpread(scanned(0.0, 1.0, 7), truth, 300);
-  EXPECT_GT(clean, 0.7 * quiet);
-  EXPECT_NEAR(clean, logVolumeSpread(scanned(0.0005, 1.0, 7), truth, 300), 0.1 * clean);
+  const double clean = logVolumeSpread(scanned(0.0, 1.0, 7), truth);
+  EXPECT_GT(clean, 0.5 * quiet);
+  EXPECT_NEAR(clean, logVolumeSpread(scanned(0.0005, 1.0, 7), truth), 0.1 * clean);
+  // Taken on kSpreadPoints whatever the cloud's size: the whole scan (tens of thousands of
+  // points) reads as its thinned few hundred do.
+  const PointList dense = scanned(0.0025, 1.0, 7, false);
+  ASSERT_GT(dense.size(), 20u * kSpreadPoints);
+  EXPECT_NEAR(logVolumeSpread(dense, truth), quiet, 0.25 * quiet);
   const PointList all = scanned(0.002, 1.0, 7);
   const PointList few(all.begin(), all.begin() + 11);
-  EXPECT_TRUE(std::isnan(logVolumeSpread(few, truth, 300)));
+  EXPECT_TRUE(std::isnan(logVolumeSpread(few, truth)));
   PointList with_nan = scanned(0.002, 1.0, 7);
   with_nan.push_back(Point::Constant(std::nan("")));
-  EXPECT_TRUE(std::isfinite(logVolumeSpread(with_nan, truth, 0)));
+  EXPECT_TRUE(std::isfinite(logVolumeSpread(with_nan, truth)));
 }
 
 namespace {
 
 // Random fruit-like superellipsoids seen from one side over a third to all of their surface,
 // 1.5 mm noise on 4 mm voxels, each through its own pipeline: the truths and their single
-// accepted fits (40 drawn).
+// accepted fits (40 drawn, once for the tests that read them).
 struct RandomFruitFit {
   Superellipsoid truth;
   FruitEstimate fit;
 };
-std::vector<RandomFruitFit> fitRandomFruits() {
+const std::vector<RandomFruitFit>& fitRandomFruits() {
+  static const std::vector<RandomFruitFit> fits = [] {
   std::vector<RandomFruitFit> out;
   for (int i = 0; i < 40; ++i) {
     std::mt19937 rng(4000 + i);
@@ -248,6 +255,8 @@ std::vector<RandomFruitFit> fitRandomFruits() {
     if (fruits.size() == 1 && fruits[0].accepted) out.push_back({truth, fruits[0]});
   }
   return out;
+  }();
+  return fits;
 }
 
 }  // namespace
@@ -255,7 +264,7 @@ std::vector<RandomFruitFit> fitRandomFruits() {
 // The true volume of such fruits lies inside the interval for about nine in ten, and the
 // interval is not made wide to get there.
 TEST(VolumeInterval, HoldsTheTrueVolumeOfMostRandomFruits) {
-  const std::vector<RandomFruitFit> fits = fitRandomFruits();
+  const std::vector<RandomFruitFit>& fits = fitRandomFruits();
   ASSERT_GE(fits.size(), 36u);
   int inside = 0;
   std::vector<double> half_widths;
@@ -320,7 +329,7 @@ TEST(CenterUncertainty, ShrinksAsMoreOfTheFruitIsSeenAndGrowsWithTheResidual) {
 // The true centre of the same random fruits lies within the radius for about nine in ten, and
 // the radius is not made large to get there.
 TEST(CenterUncertainty, HoldsTheTrueCentreOfMostRandomFruits) {
-  const std::vector<RandomFruitFit> fits = fitRandomFruits();
+  const std::vector<RandomFruitFit>& fits = fitRandomFruits();
   ASSERT_GE(fits.size(), 36u);
   int inside = 0;
   std::vector<double> radii;

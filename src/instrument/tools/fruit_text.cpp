@@ -30,7 +30,8 @@ nlohmann::json fruitJson(const FruitEstimate& f) {
           // the share of the fitted surface its points cover, which the interval is made from
           {"seen_share", f.accepted ? nlohmann::json(seenCoverage(f, MissingSurfaceParams().samples)) : nlohmann::json()},
           // how far the points alone pin the size down, which the interval is also made from
-          {"log_volume_spread", f.accepted && std::isfinite(f.log_volume_spread) ? nlohmann::json(f.log_volume_spread) : nlohmann::json()},
+          {"log_volume_spread",
+           f.accepted && std::isfinite(f.log_volume_spread) ? nlohmann::json(f.log_volume_spread) : nlohmann::json()},
           {"bbox_volume_m3", f.bbox_volume},
           {"converged", f.converged},
           {"accepted", f.accepted},

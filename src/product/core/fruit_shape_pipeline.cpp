@@ -180,7 +180,7 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) 
   }
   const Superellipsoid& se = e->shape;
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
-  e->log_volume_spread = logVolumeSpread(e->points, se, params_.fit.max_points);
+  e->log_volume_spread = logVolumeSpread(e->points, se);
   const VolumeInterval ci = volumeInterval90(e->volume, seen, e->rms, e->log_volume_spread, at_bound);
   e->volume_lo = ci.lo;
   e->volume_hi = ci.hi;
