@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 
+#include <cstddef>
 #include <vector>
 
 namespace ceres {
@@ -27,5 +28,10 @@ void evaluateRadialResiduals(const PointList& points, const Superellipsoid& shap
 // one-point form), and their RMS (0 for no points).
 Eigen::VectorXd radialDistances(const PointList& points, const Superellipsoid& shape);
 double rmsRadialDistance(const PointList& points, const Superellipsoid& shape);
+
+// At most `at_most` of the points, evenly strided (point floor(i n / at_most) for i < at_most):
+// what the fit's final solve and the volume spread evaluate the data term on. All of them when
+// there are no more.
+PointList evenlyStrided(const PointList& points, std::size_t at_most);
 
 }  // namespace fruit_shape_completion

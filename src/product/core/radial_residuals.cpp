@@ -165,4 +165,13 @@ double rmsRadialDistance(const PointList& points, const Superellipsoid& shape) {
   return std::sqrt(r.squaredNorm() / static_cast<double>(points.size()));
 }
 
+PointList evenlyStrided(const PointList& points, std::size_t at_most) {
+  if (points.size() <= at_most) return points;
+  PointList out;
+  out.reserve(at_most);
+  const double step = static_cast<double>(points.size()) / static_cast<double>(at_most);
+  for (std::size_t i = 0; i < at_most; ++i) out.push_back(points[static_cast<std::size_t>(static_cast<double>(i) * step)]);
+  return out;
+}
+
 }  // namespace fruit_shape_completion

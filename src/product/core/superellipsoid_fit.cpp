@@ -302,11 +302,7 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
   }
   Solution final_solution = *best;
   if (params.max_points > 0 && finite.size() > static_cast<size_t>(params.max_points)) {
-    std::vector<Point> strided;
-    strided.reserve(static_cast<size_t>(params.max_points) + 1);
-    const double step = static_cast<double>(finite.size()) / params.max_points;
-    for (int i = 0; i < params.max_points; ++i) strided.push_back(finite[static_cast<size_t>(i * step)]);
-    solve(strided, center_prior, params, final_solution);
+    solve(evenlyStrided(finite, static_cast<size_t>(params.max_points)), center_prior, params, final_solution);
   } else {
     solve(finite, center_prior, params, final_solution);
   }

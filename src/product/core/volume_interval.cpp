@@ -46,11 +46,7 @@ double logVolumeSpread(const PointList& points, const Superellipsoid& shape) {
     if (p.allFinite()) finite.push_back(p);
   // The spread shrinks as the square root of the points it is taken on: always on the same
   // number, the one the model was calibrated with, whatever the fit's own max_points.
-  const std::size_t n = finite.size(), m = std::min<std::size_t>(n, kSpreadPoints);
-  PointList used;
-  used.reserve(m);
-  const double step = m > 0 ? static_cast<double>(n) / static_cast<double>(m) : 1.0;
-  for (std::size_t i = 0; i < m; ++i) used.push_back(finite[static_cast<std::size_t>(static_cast<double>(i) * step)]);
+  const PointList used = evenlyStrided(finite, kSpreadPoints);
   if (used.size() <= static_cast<std::size_t>(kParams) || !shape.isFinite()) return nan;
   Eigen::VectorXd residuals;
   Eigen::MatrixXd J;
