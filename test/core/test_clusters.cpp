@@ -7,6 +7,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -162,6 +163,46 @@ TEST(FruitCenter, HalfSeenSphereCentreFromNormalLines) {
   EXPECT_LT((w - c).norm(), 0.003);
   EXPECT_GT((mean - c).norm(), 0.015);  // the mean alone would be far off
   EXPECT_TRUE(checkClusterShape(pts, n.normals).ok);
+}
+
+TEST(FruitCenter, TheSphereThroughASmallCapFindsItsCentre) {
+  const Eigen::Vector3d c(0.2, 0.4, 0.9);
+  ScanParams p;
+  p.visible_fraction = 0.2;
+  p.voxel = 0.0;
+  p.noise_sigma = 0.0;
+  p.view_dir = Eigen::Vector3d(1, -2, 0.5);
+  const PointList cap = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(0.035, c)), p);
+  EXPECT_LT((sphereCenter(cap) - c).norm(), 1e-6);
+  // A flat patch or a line pins no sphere down; nor do three points.
+  PointList plane, line;
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j) plane.emplace_back(0.003 * i, 0.003 * j, 0.0);
+  for (int i = 0; i < 200; ++i) line.emplace_back(0.001 * i, 0.0, 0.0);
+  EXPECT_FALSE(sphereCenter(plane).allFinite());
+  EXPECT_FALSE(sphereCenter(line).allFinite());
+  EXPECT_FALSE(sphereCenter(PointList(cap.begin(), cap.begin() + 3)).allFinite());
+}
+
+TEST(FruitCenter, TheNormalLinesHoldLessOverASmallerCap) {
+  // The mean squared sine of the normals' angle to the weakest direction: 2/3 over a hemisphere
+  // or more, (2 - cos t - cos^2 t) / 3 over a cap of half angle t below 90 deg (a quarter seen:
+  // t = 60 deg, 5/12; 1/2 at cos t = (sqrt(3) - 1) / 2, 32 % seen).
+  const Eigen::Vector3d c(0.0, 0.0, 1.0);
+  const double share_at_half = 0.5 * (1.0 - 0.5 * (std::sqrt(3.0) - 1.0));
+  for (const auto& [seen, expected] :
+       {std::pair{1.0, 2.0 / 3.0}, {0.5, 2.0 / 3.0}, {share_at_half, 0.5}, {0.25, 5.0 / 12.0}}) {
+    ScanParams p;
+    p.visible_fraction = seen;
+    p.voxel = 0.0;
+    p.noise_sigma = 0.0;
+    const PointList pts = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(0.04, c)), p);
+    std::vector<Eigen::Vector3d> normals;
+    for (const auto& q : pts) normals.push_back((c - q).normalized());
+    EXPECT_NEAR(normalLineHold(normals), expected, 0.01) << "seen " << seen;
+  }
+  EXPECT_EQ(normalLineHold({}), 0.0);
+  EXPECT_EQ(normalLineHold({Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())}), 0.0);
 }
 
 TEST(FruitCenter, PlanarAndCollinearClustersAreRejectedWithAReason) {

@@ -5,8 +5,13 @@
 // blurred outlines (points at a view's rim dragged away from the camera, as the paper's 3 x 3
 // depth blur does), 0-5 % outliers, and sometimes a touching neighbour. Per coverage bin: mean,
 // 5th percentile and worst volume accuracy, centre error, fit time.
-//   fit_stress [--fruits N] [--seed S] [--json FILE] [--max-fit-points N] [--stall-tolerance T]
-//              [--function-tolerance T] [--refit-tolerance T]
+// --camera-views: each view is a camera 0.3-0.5 m away (the planner's sensor range) that sees
+// what faces it unhidden (a z-buffer), its share cut by a leaf's straight edge across the image:
+// a silhouette in front of the centre, not a cap whose rim passes through it. The same fruits,
+// views, noise levels, blur, strays and neighbours as without it; the noise itself, the
+// neighbour's side and the strays are drawn anew.
+//   fit_stress [--fruits N] [--seed S] [--json FILE] [--camera-views] [--max-fit-points N]
+//              [--stall-tolerance T] [--function-tolerance T] [--refit-tolerance T]
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <fruit_shape_completion/neighbour_grid.h>
@@ -21,6 +26,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <unordered_map>
 #include <unordered_set>
 
 using namespace fruit_shape_completion;
@@ -29,7 +35,7 @@ namespace {
 
 struct View {
   Eigen::Vector3d dir;  // from the fruit's centre toward the camera
-  double cap;           // share of the surface the view sees (a cap around dir)
+  double cap;           // share of the surface the view sees (a cap around dir; with camera views, at most)
 };
 
 struct Case {
@@ -124,24 +130,84 @@ Case randomCase(int index, std::mt19937& rng) {
   return c;
 }
 
+// How each surface sample faces a camera view: its margin inside what the view sees (0 at the
+// outline, negative: unseen). A view of all the surface (cap 1) sees everything, as in cap mode.
+std::vector<double> cameraMargins(const PointList& surface, const SyntheticFruit& fruit, const View& view,
+                                  std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<double> margin(surface.size(), view.cap >= 1.0 ? 1.0 : -1.0);
+  if (view.cap >= 1.0) return margin;
+  const Eigen::Vector3d dir = view.dir.normalized();
+  const Eigen::Vector3d cam = fruit.center + (0.3 + 0.2 * u(rng)) * dir;
+  const double edge_angle = 2.0 * M_PI * u(rng);
+  const Eigen::Vector3d e1 = dir.unitOrthogonal(), e2 = dir.cross(e1);
+  const double depth_of_centre = (fruit.center - cam).dot(-dir);
+  const double pixel = 0.0025 / depth_of_centre;  // about 2.5 mm at the fruit: no holes between samples
+  struct Px {
+    double x, y, depth;
+  };
+  std::vector<Px> px(surface.size());
+  std::unordered_map<std::uint64_t, double> nearest;
+  auto key = [&](const Px& q) {
+    const auto ix = static_cast<std::int64_t>(std::floor(q.x / pixel)) + (1 << 20);
+    const auto iy = static_cast<std::int64_t>(std::floor(q.y / pixel)) + (1 << 20);
+    return (static_cast<std::uint64_t>(ix) << 32) | static_cast<std::uint64_t>(iy);
+  };
+  for (std::size_t i = 0; i < surface.size(); ++i) {
+    const Eigen::Vector3d rel = surface[i] - cam;
+    const double depth = rel.dot(-dir);
+    px[i] = {rel.dot(e1) / depth, rel.dot(e2) / depth, depth};
+    auto [it, fresh] = nearest.emplace(key(px[i]), depth);
+    if (!fresh) it->second = std::min(it->second, depth);
+  }
+  std::vector<std::size_t> visible;
+  for (std::size_t i = 0; i < surface.size(); ++i)
+    if (px[i].depth <= nearest[key(px[i])] + 0.002) visible.push_back(i);
+  // The leaf's edge: keep the visible samples on one side, `cap` of the whole surface at most.
+  std::vector<double> along(visible.size());
+  for (std::size_t k = 0; k < visible.size(); ++k)
+    along[k] = std::cos(edge_angle) * px[visible[k]].x + std::sin(edge_angle) * px[visible[k]].y;
+  const std::size_t keep = std::min(visible.size(), static_cast<std::size_t>(view.cap * surface.size()));
+  if (keep == 0) return margin;
+  std::vector<double> sorted = along;
+  std::nth_element(sorted.begin(), sorted.begin() + (keep - 1), sorted.end());
+  const double edge = sorted[keep - 1];
+  for (std::size_t k = 0; k < visible.size(); ++k) {
+    if (along[k] > edge) continue;
+    const std::size_t i = visible[k];
+    // How squarely the surface faces the camera (the radial direction standing in for the normal):
+    // small at the silhouette, where the paper's depth blur drags points.
+    const Eigen::Vector3d radial = (surface[i] - fruit.center).normalized();
+    margin[i] = std::max(0.0, radial.dot((cam - surface[i]).normalized()));
+  }
+  return margin;
+}
+
 // The TSDF-like surface cloud of `fruit` seen by `views`: voxel centres, noisy, rims blurred.
 PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, double noise, double blur,
-               std::mt19937& rng, double* coverage) {
+               std::mt19937& rng, double* coverage, std::uint32_t camera_seed = 0) {
   const double voxel = 0.004;
   std::normal_distribution<double> g(0.0, noise);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const PointList dirs = fibonacciSphere(40000);
+  PointList surface;
+  surface.reserve(dirs.size());
+  for (const auto& d : dirs) surface.push_back(fruit.surfacePoint(d));
+  std::vector<std::vector<double>> camera;
+  for (std::size_t v = 0; camera_seed != 0 && v < views.size(); ++v)
+    camera.push_back(cameraMargins(surface, fruit, views[v], camera_seed + static_cast<std::uint32_t>(v)));
   std::unordered_set<std::uint64_t> cells;
   PointList out;
   int seen = 0;
-  for (const auto& d : dirs) {
-    const Eigen::Vector3d p = fruit.surfacePoint(d);
+  for (std::size_t i = 0; i < dirs.size(); ++i) {
+    const Eigen::Vector3d& p = surface[i];
     const Eigen::Vector3d radial = (p - fruit.center).normalized();
     double best_margin = -1.0;  // how far inside its cap the best view sees it (0: at the rim)
     const View* by = nullptr;
-    for (const auto& v : views) {
-      const double margin = radial.dot(v.dir) - (1.0 - 2.0 * v.cap);
-      if (margin >= 0.0 && margin > best_margin) best_margin = margin, by = &v;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      const double margin = camera.empty() ? radial.dot(views[v].dir) - (1.0 - 2.0 * views[v].cap) : camera[v][i];
+      if (margin >= 0.0 && margin > best_margin) best_margin = margin, by = &views[v];
     }
     if (!by) continue;
     ++seen;
@@ -158,9 +224,9 @@ PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, doub
   return out;
 }
 
-Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, const std::string& dump) {
-  Outcome o;
-  PointList cloud = scan(c.fruit, c.views, c.noise, c.blur, rng, &o.coverage);
+// The case's cloud: its own surface, a touching neighbour's if it has one, and strays.
+PointList caseCloud(const Case& c, std::mt19937& rng, std::uint32_t camera_seed, double* coverage) {
+  PointList cloud = scan(c.fruit, c.views, c.noise, c.blur, rng, coverage, camera_seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const std::size_t own = cloud.size();
   if (c.neighbour) {  // a touching fruit beside it, seen from the first view's side
@@ -169,12 +235,27 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
     const double reach = c.fruit.radius(c.fruit.rotation.transpose() * side) + other.a;
     other.t = c.fruit.center + side * reach;
     double ignored = 0;
-    const PointList more = scan(SyntheticFruit::fromSuperellipsoid(other), {{c.views[0].dir, 0.5}}, c.noise, c.blur, rng, &ignored);
+    const PointList more = scan(SyntheticFruit::fromSuperellipsoid(other), {{c.views[0].dir, 0.5}}, c.noise, c.blur, rng,
+                                &ignored, camera_seed == 0 ? 0 : camera_seed + 17);
     cloud.insert(cloud.end(), more.begin(), more.end());
   }
   const int n_out = static_cast<int>(c.outliers * own);
   for (int i = 0; i < n_out; ++i)  // stray surface points within 3 cm of the fruit's outline
     cloud.push_back(c.fruit.center + (0.5 * c.diameter + 0.03) * Eigen::Vector3d{u(rng), u(rng), u(rng)});
+  return cloud;
+}
+
+Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, const std::string& dump,
+            std::uint32_t camera_seed) {
+  Outcome o;
+  PointList cloud = caseCloud(c, rng, 0, &o.coverage);
+  if (camera_seed != 0) {
+    // The cap cloud above still drew from the suite's generator, so that the cases after this
+    // one are those of cap mode; the camera cloud draws its noise, its neighbour's side and its
+    // strays from its own.
+    std::mt19937 own(camera_seed + 7919u);
+    cloud = caseCloud(c, own, camera_seed, &o.coverage);
+  }
   if (!dump.empty()) {
     std::ofstream f(dump);
     for (const auto& p : cloud) f << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
@@ -242,6 +323,8 @@ int main(int argc, char** argv) {
   app.add_option("--gamma", params.fit.gamma, "the fit's axis similarity weight (fit_gamma)")->capture_default_str();
   app.add_option("--center-lambda", params.center_lambda, "the centre prior's pull toward the cluster mean")
       ->capture_default_str();
+  bool camera_views = false;
+  app.add_flag("--camera-views", camera_views, "views are cameras 0.3-0.5 m away cut by a leaf's edge (see the header)");
   int dump_index = -1;
   std::string dump_file;
   app.add_option("--dump-index", dump_index, "write this case's cloud (x y z per line) to --dump-file");
@@ -261,12 +344,14 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   for (int i = 0; i < n; ++i) {
     Case c = randomCase(i, rng);
-    Outcome o = run(c, params, rng, i == dump_index ? dump_file : std::string());
+    // Each case's cameras draw from their own seed, so that the cases stay those of cap mode.
+    const std::uint32_t camera_seed = camera_views ? 1000003u * (seed + 1) + 101u * static_cast<std::uint32_t>(i) + 1u : 0u;
+    Outcome o = run(c, params, rng, i == dump_index ? dump_file : std::string(), camera_seed);
     rows.push_back({std::move(c), o});
   }
   const std::vector<std::pair<double, double>> bins = {{0.0, 0.35}, {0.35, 0.6}, {0.6, 0.85}, {0.85, 1.01}};
   const char* names[] = {"quarter (< 0.35)", "half (0.35-0.6)", "three quarters (0.6-0.85)", "full (>= 0.85)"};
-  nlohmann::json out = {{"seed", seed}, {"fruits", nlohmann::json::array()}, {"bins", nlohmann::json::array()}};
+  nlohmann::json out = {{"seed", seed}, {"views", camera_views ? "camera" : "cap"}, {"fruits", nlohmann::json::array()}, {"bins", nlohmann::json::array()}};
   for (const auto& r : rows)
     out["fruits"].push_back({{"index", r.c.index}, {"kind", r.c.kind}, {"diameter_m", r.c.diameter},
                              {"views", r.c.views.size()}, {"coverage", r.o.coverage}, {"noise_m", r.c.noise},

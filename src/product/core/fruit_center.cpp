@@ -2,6 +2,9 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace fruit_shape_completion {
@@ -37,6 +40,58 @@ Eigen::Vector3d estimateFruitCenter(const PointList& points,
   rhs += lambda * mean;
   const Eigen::Vector3d w = A.ldlt().solve(rhs);
   return w.allFinite() ? w : mean;
+}
+
+Eigen::Vector3d sphereCenter(const PointList& points) {
+  const Eigen::Vector3d none = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  const Eigen::Vector3d mean = meanOf(points);
+  // Relative to the mean: |q|^2 = 2 q.c' + (r^2 - |c'|^2) is linear in c' and the constant.
+  Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+  Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
+  int n = 0;
+  for (const auto& p : points) {
+    if (!p.allFinite()) continue;
+    const Eigen::Vector3d q = p - mean;
+    const Eigen::Vector4d row(2.0 * q.x(), 2.0 * q.y(), 2.0 * q.z(), 1.0);
+    A += row * row.transpose();
+    rhs += row * q.squaredNorm();
+    ++n;
+  }
+  if (n < 4) return none;
+  // Points in a plane or on a line leave a direction of A free.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es(A);
+  if (!(es.eigenvalues()(0) > 1e-9 * es.eigenvalues()(3))) return none;
+  const Eigen::Vector4d x = es.eigenvectors() * (es.eigenvectors().transpose() * rhs).cwiseQuotient(es.eigenvalues());
+  const Eigen::Vector3d offset = x.head<3>();
+  if (!offset.allFinite() || offset.norm() > 0.08) return none;
+  return mean + offset;
+}
+
+double normalLineHold(const std::vector<Eigen::Vector3d>& normals) {
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+  int n = 0;
+  for (const auto& nn : normals)
+    if (nn.allFinite()) {
+      M += Eigen::Matrix3d::Identity() - nn * nn.transpose();
+      ++n;
+    }
+  if (n == 0) return 0.0;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(M / n, Eigen::EigenvaluesOnly);
+  return std::max(0.0, es.eigenvalues()(0));
+}
+
+Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
+                                   double lambda, const CenterPriorBlend& blend) {
+  const Eigen::Vector3d lines = estimateFruitCenter(points, normals, lambda);
+  const double span = blend.normals_above - blend.sphere_below;
+  const double hold = normalLineHold(normals);
+  const double w = span > 0.0 ? std::clamp((blend.normals_above - hold) / span, 0.0, 1.0)
+                              : (hold <= blend.sphere_below ? 1.0 : 0.0);
+  if (w <= 0.0) return lines;
+  const Eigen::Vector3d sphere = sphereCenter(points);
+  if (!sphere.allFinite()) return lines;
+  return w * sphere + (1.0 - w) * lines;
 }
 
 ClusterShapeCheck checkClusterShape(const PointList& points,

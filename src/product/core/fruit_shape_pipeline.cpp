@@ -134,7 +134,7 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const
     est.reason = check.reason;
     return est;
   }
-  est.center_prior = estimateFruitCenter(points, normals, params_.center_lambda);
+  est.center_prior = blendedFruitCenter(points, normals, params_.center_lambda);
   stats->prior_seconds += secondsSince(prior_start);
   const Superellipsoid* warm =
       previous != nullptr && previous->estimate.accepted ? &previous->estimate.shape : nullptr;
