@@ -3,6 +3,8 @@
 // the cluster mean by an L2 term, and a check that a cluster has a shape worth fitting.
 #include <fruit_shape_completion/types.h>
 
+#include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -15,25 +17,36 @@ namespace fruit_shape_completion {
 Eigen::Vector3d estimateFruitCenter(const PointList& points,
                                     const std::vector<Eigen::Vector3d>& normals, double lambda);
 
-// The centre of the sphere through the points (linear least squares on |p - c|^2 = r^2), or NaN
-// if the points do not pin one down (fewer than 4, all in a plane or on a line, or a centre over
-// 8 cm from their mean).
-Eigen::Vector3d sphereCenter(const PointList& points);
+// The sphere through the points (linear least squares on |p - c|^2 = r^2). Not valid (NaN) for
+// fewer than 4 finite points, points nearly in a plane or on a line (their thinnest spread under
+// 5 % of their widest), or a centre over 8 cm from their mean.
+struct SphereFit {
+  Eigen::Vector3d center = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double radius = std::numeric_limits<double>::quiet_NaN();
+  bool valid() const { return center.allFinite() && std::isfinite(radius); }
+};
+SphereFit fitSphere(const PointList& points);
 
 // How firmly the normal lines hold the centre along their weakest direction: the smallest
 // eigenvalue of the mean of (I - n n^T) over the finite normals, the mean squared sine of the
-// normals' angle to that direction. For a sphere: 2/3 seen over a hemisphere or more, 1/2 over
-// 32 % of it, 5/12 over a quarter. 0 without normals.
+// normals' angle to that direction. For a sphere seen over a cap: 2/3 at a hemisphere and all
+// round (0.625-2/3 between), 1/2 at 32 % seen, 5/12 at a quarter; a flattened or elongated
+// fruit holds less at any share. 0 without normals.
 double normalLineHold(const std::vector<Eigen::Vector3d>& normals);
 
-// The prior the pipeline fits from: estimateFruitCenter where the normals hold the centre, the
-// sphere centre where they hold it little (a cap of about a quarter or less), and a blend
-// between. Over a small cap the normal lines meet at a depth each tilt of the one-sided rim
-// normals moves, and the fit's centre (hence its volume) follows the prior; the sphere through
-// the points is held by their curvature instead.
+// The prior the pipeline fits from: estimateFruitCenter, moved toward the centre of the sphere
+// through the points where the normal lines hold the centre little and the fruit is small. Over
+// a small cap of a small fruit the normals' neighbourhood (1.5 cm) spans much of the cap, the
+// one-sided rim normals tilt, the lines meet at a depth each tilt moves, and the fit's centre
+// (hence its volume) follows the prior; the sphere through the points is held by their
+// curvature instead. On a large fruit the normals are sound and the sphere through a small cap
+// of a shape that is no sphere misleads, so it is left out there. Without normals: the sphere
+// centre if it is valid and small enough, else the points' mean.
 struct CenterPriorBlend {
-  double sphere_below = 0.4;   // normalLineHold at or below this: the sphere centre alone
+  double sphere_below = 0.4;   // normalLineHold at or below this: the sphere's full weight
   double normals_above = 0.5;  // at or above this: the normal lines alone
+  double sphere_radius_full = 0.035;  // the sphere's radius [m] up to which it keeps its weight
+  double sphere_radius_none = 0.045;  // ... and from which it has none
 };
 Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
                                    double lambda, const CenterPriorBlend& blend = CenterPriorBlend());

@@ -1,7 +1,7 @@
-"""fit_stress --camera-views scans the same cases as the default caps, and a camera sees no more
-of a fruit than faces it: one view that is not an all-round one sees under half of the surface
-(a camera 0.3 m or more away sees at most about 46 % of a 12 cm sphere), and never more than
-the cap of the same share would.
+"""fit_stress --camera-views scans the same cases as the default caps, and one camera sees what
+faces it: of a sphere of radius R seen from d, (1 - R / d) / 2 of the surface (38-48 % for the
+suite's 4-12 cm fruits 0.3-0.5 m away; an elongated fruit seen end-on shows less of its directions), or the view's
+share if that is less (a leaf's edge cuts the rest).
 
 usage: fit_stress_camera_views.py FIT_STRESS"""
 import json
@@ -24,20 +24,20 @@ def main():
         caps = run(tool, os.path.join(tmp, 'caps.json'))
         cams = run(tool, os.path.join(tmp, 'cams.json'), '--camera-views')
     failures = []
-    if caps.get('views') != 'cap' or cams.get('views') != 'camera':
-        failures.append('the JSON does not say which views: %r / %r' % (caps.get('views'), cams.get('views')))
+    if caps.get('view_model') != 'cap' or cams.get('view_model') != 'camera':
+        failures.append('the JSON does not say which views: %r / %r' % (caps.get('view_model'), cams.get('view_model')))
     single = 0
     for a, b in zip(caps['fruits'], cams['fruits']):
-        same = all(a[k] == b[k] for k in ('kind', 'diameter_m', 'views', 'noise_m', 'blur_m', 'outliers', 'neighbour'))
-        if not same:
+        keys = ('kind', 'diameter_m', 'views', 'view_shares', 'noise_m', 'blur_m', 'outliers', 'neighbour')
+        if not all(a[k] == b[k] for k in keys):
             failures.append('case %d differs between the modes' % a['index'])
-        if a['views'] == 1 and a['coverage'] < 0.85:
+        if b['views'] == 1 and b['view_shares'][0] < 1.0:
             single += 1
-            if not b['coverage'] < 0.5:
-                failures.append('case %d: one camera saw %.3f of the surface' % (a['index'], b['coverage']))
-            if b['coverage'] > a['coverage'] + 0.01:
-                failures.append('case %d: the camera saw %.3f, the cap of that share %.3f' %
-                                (a['index'], b['coverage'], a['coverage']))
+            share = b['view_shares'][0]
+            low, high = min(share, 0.30) - 0.02, min(share, 0.5) + 0.01
+            if not low <= b['coverage'] <= high:
+                failures.append('case %d: one camera of share %.3f saw %.3f of the surface (expected %.2f-%.2f)' %
+                                (a['index'], share, b['coverage'], low, high))
     if single < 5:
         failures.append('only %d single partial views drawn; the check needs more' % single)
     if len(caps['fruits']) != 40 or len(cams['fruits']) != 40:

@@ -6,7 +6,8 @@
 // depth blur does), 0-5 % outliers, and sometimes a touching neighbour. Per coverage bin: mean,
 // 5th percentile and worst volume accuracy, centre error, fit time.
 // --camera-views: each view is a camera 0.3-0.5 m away (the planner's sensor range) that sees
-// what faces it unhidden (a z-buffer), its share cut by a leaf's straight edge across the image:
+// what faces it and is not hidden by the fruit itself (a z-buffer; a touching neighbour is
+// scanned by its own camera and hides nothing), its share cut by a leaf's straight edge:
 // a silhouette in front of the centre, not a cap whose rim passes through it. The same fruits,
 // views, noise levels, blur, strays and neighbours as without it; the noise itself, the
 // neighbour's side and the strays are drawn anew.
@@ -23,9 +24,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -130,10 +133,31 @@ Case randomCase(int index, std::mt19937& rng) {
   return c;
 }
 
-// How each surface sample faces a camera view: its margin inside what the view sees (0 at the
-// outline, negative: unseen). A view of all the surface (cap 1) sees everything, as in cap mode.
-std::vector<double> cameraMargins(const PointList& surface, const SyntheticFruit& fruit, const View& view,
-                                  std::uint32_t seed) {
+// Outward unit normals of the fruit's surface at `dirs` (directions of its own frame, as
+// surfacePoint takes them), by central differences across the sphere of directions.
+std::vector<Eigen::Vector3d> outwardNormals(const SyntheticFruit& fruit, const PointList& dirs) {
+  std::vector<Eigen::Vector3d> normals;
+  normals.reserve(dirs.size());
+  const double h = 1e-3;
+  for (const auto& u : dirs) {
+    const Eigen::Vector3d t1 = u.unitOrthogonal(), t2 = u.cross(t1);
+    const Eigen::Vector3d a = fruit.surfacePoint((u + h * t1).normalized()) - fruit.surfacePoint((u - h * t1).normalized());
+    const Eigen::Vector3d b = fruit.surfacePoint((u + h * t2).normalized()) - fruit.surfacePoint((u - h * t2).normalized());
+    Eigen::Vector3d n = a.cross(b).normalized();
+    if (n.dot(fruit.surfacePoint(u) - fruit.center) < 0.0) n = -n;
+    normals.push_back(n);
+  }
+  return normals;
+}
+
+// How each surface sample faces a camera view: the cosine between its normal and the ray to the
+// camera where the camera sees it (0 at the outline), -1 where it does not. A sample is seen if
+// it faces the camera and no other part of the fruit that faces it lies nearer in its pixel (the
+// tolerance grows with the tilt: a tilted patch spans depth across one pixel). A leaf's straight
+// edge across the image then keeps `view.cap` of the whole surface at most. A view of all the
+// surface (cap 1) sees everything, as in cap mode.
+std::vector<double> cameraMargins(const PointList& surface, const std::vector<Eigen::Vector3d>& normals,
+                                  const SyntheticFruit& fruit, const View& view, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<double> margin(surface.size(), view.cap >= 1.0 ? 1.0 : -1.0);
@@ -142,10 +166,9 @@ std::vector<double> cameraMargins(const PointList& surface, const SyntheticFruit
   const Eigen::Vector3d cam = fruit.center + (0.3 + 0.2 * u(rng)) * dir;
   const double edge_angle = 2.0 * M_PI * u(rng);
   const Eigen::Vector3d e1 = dir.unitOrthogonal(), e2 = dir.cross(e1);
-  const double depth_of_centre = (fruit.center - cam).dot(-dir);
-  const double pixel = 0.0025 / depth_of_centre;  // about 2.5 mm at the fruit: no holes between samples
+  const double pixel = 0.0025 / (fruit.center - cam).dot(-dir);  // about 2.5 mm wide at the fruit
   struct Px {
-    double x, y, depth;
+    double x, y, depth, facing;
   };
   std::vector<Px> px(surface.size());
   std::unordered_map<std::uint64_t, double> nearest;
@@ -157,14 +180,17 @@ std::vector<double> cameraMargins(const PointList& surface, const SyntheticFruit
   for (std::size_t i = 0; i < surface.size(); ++i) {
     const Eigen::Vector3d rel = surface[i] - cam;
     const double depth = rel.dot(-dir);
-    px[i] = {rel.dot(e1) / depth, rel.dot(e2) / depth, depth};
+    px[i] = {rel.dot(e1) / depth, rel.dot(e2) / depth, depth, normals[i].dot(-rel.normalized())};
+    if (px[i].facing <= 0.0) continue;
     auto [it, fresh] = nearest.emplace(key(px[i]), depth);
     if (!fresh) it->second = std::min(it->second, depth);
   }
   std::vector<std::size_t> visible;
-  for (std::size_t i = 0; i < surface.size(); ++i)
-    if (px[i].depth <= nearest[key(px[i])] + 0.002) visible.push_back(i);
-  // The leaf's edge: keep the visible samples on one side, `cap` of the whole surface at most.
+  for (std::size_t i = 0; i < surface.size(); ++i) {
+    if (px[i].facing <= 0.0) continue;
+    const double tilt = std::min(5.0, std::sqrt(1.0 - px[i].facing * px[i].facing) / px[i].facing);  // tan, capped
+    if (px[i].depth <= nearest[key(px[i])] + 0.002 + pixel * px[i].depth * tilt) visible.push_back(i);
+  }
   std::vector<double> along(visible.size());
   for (std::size_t k = 0; k < visible.size(); ++k)
     along[k] = std::cos(edge_angle) * px[visible[k]].x + std::sin(edge_angle) * px[visible[k]].y;
@@ -173,20 +199,14 @@ std::vector<double> cameraMargins(const PointList& surface, const SyntheticFruit
   std::vector<double> sorted = along;
   std::nth_element(sorted.begin(), sorted.begin() + (keep - 1), sorted.end());
   const double edge = sorted[keep - 1];
-  for (std::size_t k = 0; k < visible.size(); ++k) {
-    if (along[k] > edge) continue;
-    const std::size_t i = visible[k];
-    // How squarely the surface faces the camera (the radial direction standing in for the normal):
-    // small at the silhouette, where the paper's depth blur drags points.
-    const Eigen::Vector3d radial = (surface[i] - fruit.center).normalized();
-    margin[i] = std::max(0.0, radial.dot((cam - surface[i]).normalized()));
-  }
+  for (std::size_t k = 0; k < visible.size(); ++k)
+    if (along[k] <= edge) margin[visible[k]] = px[visible[k]].facing;
   return margin;
 }
 
 // The TSDF-like surface cloud of `fruit` seen by `views`: voxel centres, noisy, rims blurred.
 PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, double noise, double blur,
-               std::mt19937& rng, double* coverage, std::uint32_t camera_seed = 0) {
+               std::mt19937& rng, double* coverage, std::optional<std::uint32_t> camera_seed = std::nullopt) {
   const double voxel = 0.004;
   std::normal_distribution<double> g(0.0, noise);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -195,8 +215,11 @@ PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, doub
   surface.reserve(dirs.size());
   for (const auto& d : dirs) surface.push_back(fruit.surfacePoint(d));
   std::vector<std::vector<double>> camera;
-  for (std::size_t v = 0; camera_seed != 0 && v < views.size(); ++v)
-    camera.push_back(cameraMargins(surface, fruit, views[v], camera_seed + static_cast<std::uint32_t>(v)));
+  if (camera_seed) {
+    const std::vector<Eigen::Vector3d> normals = outwardNormals(fruit, dirs);
+    for (std::size_t v = 0; v < views.size(); ++v)
+      camera.push_back(cameraMargins(surface, normals, fruit, views[v], *camera_seed + static_cast<std::uint32_t>(v)));
+  }
   std::unordered_set<std::uint64_t> cells;
   PointList out;
   int seen = 0;
@@ -225,7 +248,7 @@ PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, doub
 }
 
 // The case's cloud: its own surface, a touching neighbour's if it has one, and strays.
-PointList caseCloud(const Case& c, std::mt19937& rng, std::uint32_t camera_seed, double* coverage) {
+PointList caseCloud(const Case& c, std::mt19937& rng, std::optional<std::uint32_t> camera_seed, double* coverage) {
   PointList cloud = scan(c.fruit, c.views, c.noise, c.blur, rng, coverage, camera_seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const std::size_t own = cloud.size();
@@ -236,7 +259,7 @@ PointList caseCloud(const Case& c, std::mt19937& rng, std::uint32_t camera_seed,
     other.t = c.fruit.center + side * reach;
     double ignored = 0;
     const PointList more = scan(SyntheticFruit::fromSuperellipsoid(other), {{c.views[0].dir, 0.5}}, c.noise, c.blur, rng,
-                                &ignored, camera_seed == 0 ? 0 : camera_seed + 17);
+                                &ignored, camera_seed ? std::optional<std::uint32_t>(*camera_seed + 17) : std::nullopt);
     cloud.insert(cloud.end(), more.begin(), more.end());
   }
   const int n_out = static_cast<int>(c.outliers * own);
@@ -246,14 +269,14 @@ PointList caseCloud(const Case& c, std::mt19937& rng, std::uint32_t camera_seed,
 }
 
 Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, const std::string& dump,
-            std::uint32_t camera_seed) {
+            std::optional<std::uint32_t> camera_seed) {
   Outcome o;
-  PointList cloud = caseCloud(c, rng, 0, &o.coverage);
-  if (camera_seed != 0) {
+  PointList cloud = caseCloud(c, rng, std::nullopt, &o.coverage);
+  if (camera_seed) {
     // The cap cloud above still drew from the suite's generator, so that the cases after this
     // one are those of cap mode; the camera cloud draws its noise, its neighbour's side and its
     // strays from its own.
-    std::mt19937 own(camera_seed + 7919u);
+    std::mt19937 own(*camera_seed + 7919u);
     cloud = caseCloud(c, own, camera_seed, &o.coverage);
   }
   if (!dump.empty()) {
@@ -345,16 +368,23 @@ int main(int argc, char** argv) {
   for (int i = 0; i < n; ++i) {
     Case c = randomCase(i, rng);
     // Each case's cameras draw from their own seed, so that the cases stay those of cap mode.
-    const std::uint32_t camera_seed = camera_views ? 1000003u * (seed + 1) + 101u * static_cast<std::uint32_t>(i) + 1u : 0u;
+    const auto camera_seed = camera_views ? std::optional<std::uint32_t>(1000003u * (seed + 1) + 101u * static_cast<std::uint32_t>(i))
+                                          : std::nullopt;
     Outcome o = run(c, params, rng, i == dump_index ? dump_file : std::string(), camera_seed);
     rows.push_back({std::move(c), o});
   }
   const std::vector<std::pair<double, double>> bins = {{0.0, 0.35}, {0.35, 0.6}, {0.6, 0.85}, {0.85, 1.01}};
   const char* names[] = {"quarter (< 0.35)", "half (0.35-0.6)", "three quarters (0.6-0.85)", "full (>= 0.85)"};
-  nlohmann::json out = {{"seed", seed}, {"views", camera_views ? "camera" : "cap"}, {"fruits", nlohmann::json::array()}, {"bins", nlohmann::json::array()}};
+  nlohmann::json out = {{"seed", seed}, {"view_model", camera_views ? "camera" : "cap"}, {"fruits", nlohmann::json::array()}, {"bins", nlohmann::json::array()}};
+  auto shares = [](const Case& c) {
+    std::vector<double> v;
+    for (const auto& view : c.views) v.push_back(view.cap);
+    return v;
+  };
   for (const auto& r : rows)
     out["fruits"].push_back({{"index", r.c.index}, {"kind", r.c.kind}, {"diameter_m", r.c.diameter},
-                             {"views", r.c.views.size()}, {"coverage", r.o.coverage}, {"noise_m", r.c.noise},
+                             {"views", r.c.views.size()}, {"view_shares", shares(r.c)}, {"coverage", r.o.coverage},
+                             {"noise_m", r.c.noise},
                              {"blur_m", r.c.blur}, {"outliers", r.c.outliers}, {"neighbour", r.c.neighbour},
                              {"found", r.o.found}, {"volume_accuracy", r.o.accuracy}, {"center_error_mm", r.o.center_mm},
                              {"center_prior_error_mm", r.o.prior_mm},

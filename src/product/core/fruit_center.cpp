@@ -42,12 +42,13 @@ Eigen::Vector3d estimateFruitCenter(const PointList& points,
   return w.allFinite() ? w : mean;
 }
 
-Eigen::Vector3d sphereCenter(const PointList& points) {
-  const Eigen::Vector3d none = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+SphereFit fitSphere(const PointList& points) {
+  SphereFit fit;
   const Eigen::Vector3d mean = meanOf(points);
   // Relative to the mean: |q|^2 = 2 q.c' + (r^2 - |c'|^2) is linear in c' and the constant.
   Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
   Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
   int n = 0;
   for (const auto& p : points) {
     if (!p.allFinite()) continue;
@@ -55,16 +56,20 @@ Eigen::Vector3d sphereCenter(const PointList& points) {
     const Eigen::Vector4d row(2.0 * q.x(), 2.0 * q.y(), 2.0 * q.z(), 1.0);
     A += row * row.transpose();
     rhs += row * q.squaredNorm();
+    spread += q * q.transpose();
     ++n;
   }
-  if (n < 4) return none;
-  // Points in a plane or on a line leave a direction of A free.
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es(A);
-  if (!(es.eigenvalues()(0) > 1e-9 * es.eigenvalues()(3))) return none;
-  const Eigen::Vector4d x = es.eigenvectors() * (es.eigenvectors().transpose() * rhs).cwiseQuotient(es.eigenvalues());
+  if (n < 4) return fit;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> shape;
+  shape.computeDirect(spread, Eigen::EigenvaluesOnly);
+  if (!(shape.eigenvalues()(0) > 0.05 * 0.05 * shape.eigenvalues()(2))) return fit;  // flat or a line
+  const Eigen::Vector4d x = A.ldlt().solve(rhs);
   const Eigen::Vector3d offset = x.head<3>();
-  if (!offset.allFinite() || offset.norm() > 0.08) return none;
-  return mean + offset;
+  const double r2 = x(3) + offset.squaredNorm();
+  if (!x.allFinite() || offset.norm() > 0.08 || !(r2 > 0.0)) return fit;
+  fit.center = mean + offset;
+  fit.radius = std::sqrt(r2);
+  return fit;
 }
 
 double normalLineHold(const std::vector<Eigen::Vector3d>& normals) {
@@ -84,14 +89,16 @@ double normalLineHold(const std::vector<Eigen::Vector3d>& normals) {
 Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
                                    double lambda, const CenterPriorBlend& blend) {
   const Eigen::Vector3d lines = estimateFruitCenter(points, normals, lambda);
-  const double span = blend.normals_above - blend.sphere_below;
-  const double hold = normalLineHold(normals);
-  const double w = span > 0.0 ? std::clamp((blend.normals_above - hold) / span, 0.0, 1.0)
-                              : (hold <= blend.sphere_below ? 1.0 : 0.0);
+  auto ramp = [](double value, double full, double none) {  // 1 at or beyond `full`, 0 at `none`
+    if (full == none) return value <= full ? 1.0 : 0.0;
+    return std::clamp((none - value) / (none - full), 0.0, 1.0);
+  };
+  double w = ramp(normalLineHold(normals), blend.sphere_below, blend.normals_above);
   if (w <= 0.0) return lines;
-  const Eigen::Vector3d sphere = sphereCenter(points);
-  if (!sphere.allFinite()) return lines;
-  return w * sphere + (1.0 - w) * lines;
+  const SphereFit sphere = fitSphere(points);
+  if (!sphere.valid()) return lines;
+  w *= ramp(sphere.radius, blend.sphere_radius_full, blend.sphere_radius_none);
+  return w > 0.0 ? Eigen::Vector3d(w * sphere.center + (1.0 - w) * lines) : lines;
 }
 
 ClusterShapeCheck checkClusterShape(const PointList& points,
