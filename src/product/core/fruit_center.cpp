@@ -48,7 +48,6 @@ SphereFit fitSphere(const PointList& points) {
   // Relative to the mean: |q|^2 = 2 q.c' + (r^2 - |c'|^2) is linear in c' and the constant.
   Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
   Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
-  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
   int n = 0;
   for (const auto& p : points) {
     if (!p.allFinite()) continue;
@@ -56,12 +55,12 @@ SphereFit fitSphere(const PointList& points) {
     const Eigen::Vector4d row(2.0 * q.x(), 2.0 * q.y(), 2.0 * q.z(), 1.0);
     A += row * row.transpose();
     rhs += row * q.squaredNorm();
-    spread += q * q.transpose();
     ++n;
   }
   if (n < 4) return fit;
+  // A's upper left block is 4 sum q q^T: the points' spread, whose eigenvalues tell a flat patch.
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> shape;
-  shape.computeDirect(spread, Eigen::EigenvaluesOnly);
+  shape.computeDirect(Eigen::Matrix3d(A.topLeftCorner<3, 3>()), Eigen::EigenvaluesOnly);
   if (!(shape.eigenvalues()(0) > 0.05 * 0.05 * shape.eigenvalues()(2))) return fit;  // flat or a line
   const Eigen::Vector4d x = A.ldlt().solve(rhs);
   const Eigen::Vector3d offset = x.head<3>();
