@@ -207,10 +207,10 @@ TEST(FruitCenter, TheNormalLinesHoldLessOverASmallerCap) {
     const PointList pts = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(0.04, c)), p);
     std::vector<Eigen::Vector3d> normals;
     for (const auto& q : pts) normals.push_back((c - q).normalized());
-    EXPECT_NEAR(normalLineHold(normals), expected, 0.01) << "seen " << seen;
+    EXPECT_NEAR(normalLineHold(pts, normals), expected, 0.01) << "seen " << seen;
   }
-  EXPECT_EQ(normalLineHold({}), 0.0);
-  EXPECT_EQ(normalLineHold({Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())}), 0.0);
+  EXPECT_EQ(normalLineHold({}, {}), 0.0);
+  EXPECT_EQ(normalLineHold({c}, {Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())}), 0.0);
 }
 
 TEST(FruitCenter, AFlattenedFruitSeenAllRoundKeepsItsCentre) {
@@ -225,7 +225,7 @@ TEST(FruitCenter, AFlattenedFruitSeenAllRoundKeepsItsCentre) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const auto& q : pts) mean += q / pts.size();
     const SurfaceNormals n = estimateNormals(pts, NormalParams(), mean);
-    EXPECT_LT(normalLineHold(n.normals), 0.5) << "a " << a;
+    EXPECT_LT(normalLineHold(pts, n.normals), 0.5) << "a " << a;
     const Eigen::Vector3d w = blendedFruitCenter(pts, n.normals, 2.5);
     EXPECT_LT((w - flat.t).norm(), 0.002) << "a " << a;
     const bool large = fitSphere(pts).radius > CenterPriorBlend().sphere_radius_none;

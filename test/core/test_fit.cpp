@@ -174,7 +174,7 @@ TEST(SuperellipsoidFit, OverAHemisphereOrMoreThePriorIsTheNormalLines) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const auto& p : pts) mean += p / pts.size();
     const SurfaceNormals n = estimateNormals(pts, NormalParams(), mean);
-    EXPECT_GT(normalLineHold(n.normals), 0.5);
+    EXPECT_GT(normalLineHold(pts, n.normals), 0.5);
     EXPECT_EQ(blendedFruitCenter(pts, n.normals, 2.5), estimateFruitCenter(pts, n.normals, 2.5));
   }
 }

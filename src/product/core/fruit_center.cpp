@@ -22,24 +22,47 @@ Eigen::Vector3d meanOf(const PointList& points) {
 }
 }  // namespace
 
-Eigen::Vector3d estimateFruitCenter(const PointList& points,
-                                    const std::vector<Eigen::Vector3d>& normals, double lambda) {
-  const Eigen::Vector3d mean = meanOf(points);
+namespace {
+// The normal lines' least-squares system over the points with a finite normal: sum (I - n n^T)
+// and sum (I - n n^T) p. The centre prior solves it; how firmly it holds is its weakest
+// eigenvalue per line.
+struct NormalLines {
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
   int used = 0;
+};
+
+NormalLines normalLines(const PointList& points, const std::vector<Eigen::Vector3d>& normals) {
+  NormalLines lines;
   for (size_t i = 0; i < points.size() && i < normals.size(); ++i) {
     if (!points[i].allFinite() || !normals[i].allFinite()) continue;
     const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - normals[i] * normals[i].transpose();
-    A += P;
-    rhs += P * points[i];
-    ++used;
+    lines.A += P;
+    lines.rhs += P * points[i];
+    ++lines.used;
   }
-  if (used == 0) return mean;
-  A += lambda * Eigen::Matrix3d::Identity();
-  rhs += lambda * mean;
+  return lines;
+}
+
+Eigen::Vector3d centerOf(const NormalLines& lines, const Eigen::Vector3d& mean, double lambda) {
+  if (lines.used == 0) return mean;
+  const Eigen::Matrix3d A = lines.A + lambda * Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d rhs = lines.rhs + lambda * mean;
   const Eigen::Vector3d w = A.ldlt().solve(rhs);
   return w.allFinite() ? w : mean;
+}
+
+double holdOf(const NormalLines& lines) {
+  if (lines.used == 0) return 0.0;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(lines.A / lines.used, Eigen::EigenvaluesOnly);
+  return std::max(0.0, es.eigenvalues()(0));
+}
+}  // namespace
+
+Eigen::Vector3d estimateFruitCenter(const PointList& points,
+                                    const std::vector<Eigen::Vector3d>& normals, double lambda) {
+  return centerOf(normalLines(points, normals), meanOf(points), lambda);
 }
 
 SphereFit fitSphere(const PointList& points) {
@@ -71,28 +94,19 @@ SphereFit fitSphere(const PointList& points) {
   return fit;
 }
 
-double normalLineHold(const std::vector<Eigen::Vector3d>& normals) {
-  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-  int n = 0;
-  for (const auto& nn : normals)
-    if (nn.allFinite()) {
-      M += Eigen::Matrix3d::Identity() - nn * nn.transpose();
-      ++n;
-    }
-  if (n == 0) return 0.0;
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-  es.computeDirect(M / n, Eigen::EigenvaluesOnly);
-  return std::max(0.0, es.eigenvalues()(0));
+double normalLineHold(const PointList& points, const std::vector<Eigen::Vector3d>& normals) {
+  return holdOf(normalLines(points, normals));
 }
 
 Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
                                    double lambda, const CenterPriorBlend& blend) {
-  const Eigen::Vector3d lines = estimateFruitCenter(points, normals, lambda);
+  const NormalLines system = normalLines(points, normals);
+  const Eigen::Vector3d lines = centerOf(system, meanOf(points), lambda);
   auto ramp = [](double value, double full, double none) {  // 1 at or beyond `full`, 0 at `none`
     if (full == none) return value <= full ? 1.0 : 0.0;
     return std::clamp((none - value) / (none - full), 0.0, 1.0);
   };
-  double w = ramp(normalLineHold(normals), blend.sphere_below, blend.normals_above);
+  double w = ramp(holdOf(system), blend.sphere_below, blend.normals_above);
   if (w <= 0.0) return lines;
   const SphereFit sphere = fitSphere(points);
   if (!sphere.valid()) return lines;
