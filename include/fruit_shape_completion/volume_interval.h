@@ -3,9 +3,9 @@
 // down (the log-volume spread), the share of the fitted surface that was seen and how closely
 // the fit explains its points. The interval is an empirical model: the 5th and 95th percentiles
 // of true / fitted volume as functions of these, pooled over the fit stress suite (fit_stress,
-// random fruits with noise, blur, outliers and touching neighbours), scenario episodes and
-// procedural scenes; checked on another draw and other episodes (docs/benchmarks.md, "The volume
-// interval, third version").
+// random fruits as cameras see them, with noise, blur, outliers and touching neighbours),
+// scenario episodes and procedural scenes; checked on another draw and other episodes
+// (docs/benchmarks.md, "The volume interval and centre radius pooled on camera views").
 #include <fruit_shape_completion/fruit_estimate.h>
 
 namespace fruit_shape_completion {

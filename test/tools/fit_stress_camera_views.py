@@ -1,4 +1,4 @@
-"""fit_stress --camera-views scans the same cases as the default caps, and one camera sees what
+"""fit_stress's camera views (its default) scan the same cases as --views cap, and one camera sees what
 faces it: of a sphere of radius R seen from d, (1 - R / d) / 2 of the surface (38-48 % for the
 suite's 4-12 cm fruits 0.3-0.5 m away; an elongated fruit seen end-on shows less of its directions), or the view's
 share if that is less (a leaf's edge cuts the rest).
@@ -21,8 +21,8 @@ def run(tool, out, *extra):
 def main():
     tool = sys.argv[1]
     with tempfile.TemporaryDirectory() as tmp:
-        caps = run(tool, os.path.join(tmp, 'caps.json'))
-        cams = run(tool, os.path.join(tmp, 'cams.json'), '--camera-views')
+        caps = run(tool, os.path.join(tmp, 'caps.json'), '--views', 'cap')
+        cams = run(tool, os.path.join(tmp, 'cams.json'))
     failures = []
     if caps.get('view_model') != 'cap' or cams.get('view_model') != 'camera':
         failures.append('the JSON does not say which views: %r / %r' % (caps.get('view_model'), cams.get('view_model')))

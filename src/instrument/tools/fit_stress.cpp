@@ -5,13 +5,14 @@
 // blurred outlines (points at a view's rim dragged away from the camera, as the paper's 3 x 3
 // depth blur does), 0-5 % outliers, and sometimes a touching neighbour. Per coverage bin: mean,
 // 5th percentile and worst volume accuracy, centre error, fit time.
-// --camera-views: each view is a camera 0.3-0.5 m away (the planner's sensor range) that sees
-// what faces it and is not hidden by the fruit itself (a z-buffer; a touching neighbour is
-// scanned by its own camera and hides nothing), its share cut by a leaf's straight edge:
-// a silhouette in front of the centre, not a cap whose rim passes through it. The same fruits,
-// views, noise levels, blur, strays and neighbours as without it; the noise itself, the
-// neighbour's side and the strays are drawn anew.
-//   fit_stress [--fruits N] [--seed S] [--json FILE] [--camera-views] [--max-fit-points N]
+// Each view is a camera 0.3-0.5 m away (the planner's sensor range) that sees what faces it and
+// is not hidden by the fruit itself (a z-buffer; a touching neighbour is scanned by its own
+// camera and hides nothing), its share cut by a leaf's straight edge: a silhouette in front of
+// the centre, as a camera sees a fruit. --views cap instead cuts each view's share as a cap
+// around its direction, whose rim passes through the centre (the suite's first view model; its
+// fits err small where cameras' err large): the same fruits, views, noise levels, blur, strays
+// and neighbours; the noise itself, the neighbour's side and the strays are drawn anew.
+//   fit_stress [--fruits N] [--seed S] [--json FILE] [--views camera|cap] [--max-fit-points N]
 //              [--stall-tolerance T] [--function-tolerance T] [--refit-tolerance T]
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
@@ -346,13 +347,17 @@ int main(int argc, char** argv) {
   app.add_option("--gamma", params.fit.gamma, "the fit's axis similarity weight (fit_gamma)")->capture_default_str();
   app.add_option("--center-lambda", params.center_lambda, "the centre prior's pull toward the cluster mean")
       ->capture_default_str();
-  bool camera_views = false;
-  app.add_flag("--camera-views", camera_views, "views are cameras 0.3-0.5 m away cut by a leaf's edge (see the header)");
+  std::string view_model = "camera";
+  app.add_option("--views", view_model,
+                 "camera: cameras 0.3-0.5 m away cut by a leaf's edge; cap: caps around the view directions (see the header)")
+      ->check(CLI::IsMember({"camera", "cap"}))
+      ->capture_default_str();
   int dump_index = -1;
   std::string dump_file;
   app.add_option("--dump-index", dump_index, "write this case's cloud (x y z per line) to --dump-file");
   app.add_option("--dump-file", dump_file, "where --dump-index's cloud goes");
   if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
+  const bool camera_views = view_model == "camera";
   try {
     params.validate();
   } catch (const std::invalid_argument& e) {
@@ -375,7 +380,7 @@ int main(int argc, char** argv) {
   }
   const std::vector<std::pair<double, double>> bins = {{0.0, 0.35}, {0.35, 0.6}, {0.6, 0.85}, {0.85, 1.01}};
   const char* names[] = {"quarter (< 0.35)", "half (0.35-0.6)", "three quarters (0.6-0.85)", "full (>= 0.85)"};
-  nlohmann::json out = {{"seed", seed}, {"view_model", camera_views ? "camera" : "cap"}, {"fruits", nlohmann::json::array()}, {"bins", nlohmann::json::array()}};
+  nlohmann::json out = {{"seed", seed}, {"view_model", view_model}, {"fruits", nlohmann::json::array()}, {"bins", nlohmann::json::array()}};
   auto shares = [](const Case& c) {
     std::vector<double> v;
     for (const auto& view : c.views) v.push_back(view.cap);

@@ -31,14 +31,14 @@ double read(const double* values, double seen_share) {
 }
 
 // Seen share -> 90th percentile of the distance from the fitted to the true centre [mm], per
-// class of the RMS radial residual, pooled over the fit stress suite (1000 fruits, seed 1) and
-// 160 paper-profile episodes of scenarios 1 and 2 (seeds 1-40, with and without shape targets;
-// one fit per true fruit, the nearest within 5 cm). A bin with fewer than 20 fits takes the
+// class of the RMS radial residual, pooled over the fit stress suite with camera views (1000
+// fruits, seed 1) and 160 paper-profile episodes of scenarios 1 and 2 (seeds 1-40, with and
+// without shape targets; one fit per true fruit, the nearest within 5 cm). A bin with fewer than 20 fits takes the
 // class below's value (scripts/calibrate_center_radius.py makes the table); made monotone (less
 // seen or a larger residual, never smaller) and rounded up to half a millimetre.
-constexpr double kRadiusMm[kClasses][kKnots] = {{11.5, 9.0, 8.0, 7.5, 6.0, 4.0, 3.5, 2.5},
-                                                {20.0, 13.0, 13.0, 9.5, 8.0, 6.0, 5.0, 4.0},
-                                                {20.0, 17.5, 17.5, 17.5, 16.0, 11.5, 11.5, 6.5}};
+constexpr double kRadiusMm[kClasses][kKnots] = {{13.5, 8.5, 4.5, 4.5, 4.0, 3.5, 3.5, 2.5},
+                                                {18.5, 14.0, 11.5, 9.5, 7.5, 5.5, 5.0, 4.0},
+                                                {18.5, 17.5, 17.5, 17.5, 16.5, 13.5, 11.0, 6.0}};
 // Fits whose shortest axis rests on its bound, pooled alike.
 constexpr double kAtBoundMm = 19.0;
 

@@ -14,26 +14,31 @@ namespace {
 // The 5th and 95th percentiles of log(true / fitted volume) as linear functions of (1, log of the
 // fit's log-volume spread, seen share, RMS radial residual beyond 3.5 mm, beyond 5.5 mm [mm]), by
 // linear quantile regression (scripts/calibrate_volume_interval.py) on a pool of three groups
-// that weigh alike: the stress suite (fit_stress --fruits 1000 --seed 1: synthetic
-// superellipsoids and lobed peppers), 160 paper-profile episodes of scenarios 1 and 2 (real
-// capsicum meshes; seeds 1-40, with and without shape targets) and 40 of procedural:1 and :2
-// (seeds 1-20 each, with shape targets; another fruit shape), all under the upstream-emulating
-// planner. Each group alone misleads on
-// the others: how closely a superellipsoid's volume matches a fully seen fruit depends on the
-// fruit's shape family. The slopes' signs are held so that a larger spread or residual never
-// narrows the interval and more of the fruit seen never widens it. The spread says which fits
-// the points pin down (a half-seen fruit whose depth they leave free); the residual what the
-// spread cannot: blurred depth and shapes that no superellipsoid matches exactly.
+// that weigh alike: the stress suite with camera views (fit_stress --fruits 1000 --seed 1:
+// synthetic superellipsoids and lobed peppers, each view cut at the fruit's silhouette as a
+// camera sees it), 160 paper-profile episodes of scenarios 1 and 2 (real capsicum meshes; seeds
+// 1-40, with and without shape targets) and 40 of procedural:1 and :2 (seeds 1-20 each, with
+// shape targets; another fruit shape), all under the upstream-emulating planner. Each group alone
+// misleads on the others: how closely a superellipsoid's volume matches a fully seen fruit
+// depends on the fruit's shape family. Views cut at a plane through the fruit (the suite's caps)
+// are not pooled: their fits err small where cameras' err large, and pooled with both the
+// interval had to be wide enough for either. The slopes' signs are held so that a larger spread
+// or residual never narrows the interval and more of the fruit seen never widens it; on this
+// pool the seen share adds nothing the spread does not say (both its slopes are 0). The spread
+// says which fits the points pin down (a half-seen fruit whose depth they leave free); the
+// residual what the spread cannot: blurred depth and shapes that no superellipsoid matches
+// exactly. The interval is not centred on the fit: a camera sees a fruit up to its silhouette,
+// and fits of such views err large more often than small.
 constexpr int kTerms = 5;
-constexpr double kLo[kTerms] = {-0.5737, -0.1159, 0.0, -0.0146, -0.0044};
-constexpr double kHi[kTerms] = {0.8193, 0.1067, -0.2923, 0.0, 0.0482};
+constexpr double kLo[kTerms] = {-0.5990, -0.1234, 0.0, -0.0146, -0.0049};
+constexpr double kHi[kTerms] = {0.3047, 0.0539, 0.0, 0.0153, 0.0575};
 constexpr double kRmsKneeMm[2] = {3.5, 5.5};
 // The ranges the pool covers: the model reads its inputs clamped into them (below the smallest
 // spread a straight line would leave the fit itself outside its interval).
 constexpr double kSpreadMin = 0.01, kSpreadMax = 0.5, kRmsMinMm = 1.0, kRmsMaxMm = 8.0;
 // A fit whose shortest axis rests on its lower bound was sized by the bound, not by its points
 // (a small patch of a larger fruit): its volume is nearly a floor. Pooled percentiles of such fits.
-constexpr double kAtBoundLo = 0.81, kAtBoundHi = 2.9;
+constexpr double kAtBoundLo = 0.79, kAtBoundHi = 2.9;
 
 }  // namespace
 
