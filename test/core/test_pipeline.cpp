@@ -403,7 +403,7 @@ TEST(FruitShapePipeline, ARoughFitAsRoundAsOneFruitIsNotTriedSplit) {
 }
 
 TEST(FruitShapePipeline, ATouchingPairStaysSplitWhenTheHalfSeenNeighboursFitBulgesIntoTheFruit) {
-  // fit_stress --seed 1, case 344: a 5.3 cm superellipsoid seen all round (167.2 cm^3 at the
+  // fit_stress --seed 1 --views cap, case 344: a 5.3 cm superellipsoid seen all round (167.2 cm^3 at the
   // origin of this cloud's fruit, (0, 0, 0.5)) and a touching neighbour seen from one side. The
   // neighbour's fit reaches 1.5 cm into the fruit's, yet the two explain the points three times
   // better than one shape: they stay two fruits.

@@ -126,7 +126,7 @@ TEST(ShapeTargets, BadParametersAreRefusedByName) {
   }
 }
 
-TEST(VolumeInterval, WidensWithTheSpreadAndTheResidualAndNarrowsAsMoreIsSeen) {
+TEST(VolumeInterval, WidensWithTheSpreadAndTheResidualAndNeverAsMoreIsSeen) {
   const double v = 2e-4;
   const std::vector<double> spreads = {0.001, 0.01, 0.02, 0.04, 0.08, 0.2, 0.5, 2.0};
   const std::vector<double> seens = {0.0, 0.3, 0.5, 0.7, 0.9, 1.0};

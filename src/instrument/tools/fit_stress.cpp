@@ -9,8 +9,8 @@
 // is not hidden by the fruit itself (a z-buffer; a touching neighbour is scanned by its own
 // camera and hides nothing), its share cut by a leaf's straight edge: a silhouette in front of
 // the centre, as a camera sees a fruit. --views cap instead cuts each view's share as a cap
-// around its direction, whose rim passes through the centre (the suite's first view model; its
-// fits err small where cameras' err large): the same fruits, views, noise levels, blur, strays
+// around its direction, whose rim passes through the centre (the suite's first view model; over a
+// quarter or half of the surface its fits err small where cameras' err large): the same fruits, views, noise levels, blur, strays
 // and neighbours; the noise itself, the neighbour's side and the strays are drawn anew.
 //   fit_stress [--fruits N] [--seed S] [--json FILE] [--views camera|cap] [--max-fit-points N]
 //              [--stall-tolerance T] [--function-tolerance T] [--refit-tolerance T]

@@ -27,8 +27,9 @@ namespace {
 // pool the seen share adds nothing the spread does not say (both its slopes are 0). The spread
 // says which fits the points pin down (a half-seen fruit whose depth they leave free); the
 // residual what the spread cannot: blurred depth and shapes that no superellipsoid matches
-// exactly. The interval is not centred on the fit: a camera sees a fruit up to its silhouette,
-// and fits of such views err large more often than small.
+// exactly. Where the points leave the size free the interval reaches further below the fit than
+// above: a camera sees a fruit up to its silhouette, and fits of such views err large more often
+// than small.
 constexpr int kTerms = 5;
 constexpr double kLo[kTerms] = {-0.5990, -0.1234, 0.0, -0.0146, -0.0049};
 constexpr double kHi[kTerms] = {0.3047, 0.0539, 0.0, 0.0153, 0.0575};
