@@ -29,9 +29,10 @@ SphereFit fitSphere(const PointList& points);
 
 // How firmly the normal lines hold the centre along their weakest direction: the smallest
 // eigenvalue of the mean of (I - n n^T) over the points with a finite normal (those
-// estimateFruitCenter uses), the mean squared sine of the normals' angle to that direction. For a sphere seen over a cap: 2/3 at a hemisphere and all
-// round (0.625-2/3 between), 1/2 at 32 % seen, 5/12 at a quarter; a flattened or elongated
-// fruit holds less at any share. 0 without normals.
+// estimateFruitCenter uses), the mean squared sine of the normals' angle to that direction. For
+// a sphere seen over a cap: 2/3 at a hemisphere and all round (0.625-2/3 between), 1/2 at 32 %
+// seen, 5/12 at a quarter; a flattened or elongated fruit holds less at any share. 0 without
+// normals.
 double normalLineHold(const PointList& points, const std::vector<Eigen::Vector3d>& normals);
 
 // The prior the pipeline fits from: estimateFruitCenter, moved toward the centre of the sphere

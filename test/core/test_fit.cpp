@@ -13,10 +13,15 @@ using namespace fruit_shape_completion;
 
 namespace {
 
-FitResult fitWithPrior(const PointList& pts, const FitParams& params = FitParams()) {
+// The points' normals, oriented away from their mean (as the pipeline orients a cluster's).
+SurfaceNormals normalsFromMean(const PointList& pts) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& p : pts) mean += p / pts.size();
-  const SurfaceNormals n = estimateNormals(pts, NormalParams(), mean);
+  return estimateNormals(pts, NormalParams(), mean);
+}
+
+FitResult fitWithPrior(const PointList& pts, const FitParams& params = FitParams()) {
+  const SurfaceNormals n = normalsFromMean(pts);
   return fitSuperellipsoid(pts, estimateFruitCenter(pts, n.normals, 2.5), params);
 }
 
@@ -140,9 +145,7 @@ TEST(SuperellipsoidFit, SmallCapsFitFromTheSphereThroughTheirPoints) {
     scan.view_dir = Eigen::Vector3d(2 * u(rng) - 1, 2 * u(rng) - 1, 2 * u(rng) - 1);
     scan.seed = 5000 + i;
     const PointList pts = scanFruit(fruit, scan);
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const auto& p : pts) mean += p / pts.size();
-    const SurfaceNormals n = estimateNormals(pts, NormalParams(), mean);
+    const SurfaceNormals n = normalsFromMean(pts);
     const double v = fruit.volume();
     for (const bool blend : {false, true}) {
       const Eigen::Vector3d prior =
@@ -171,9 +174,7 @@ TEST(SuperellipsoidFit, OverAHemisphereOrMoreThePriorIsTheNormalLines) {
     scan.seed = seed;
     const PointList pts =
         scanFruit(SyntheticFruit::fromSuperellipsoid(randomSuperellipsoid(rng, Eigen::Vector3d(0, 0, 1))), scan);
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const auto& p : pts) mean += p / pts.size();
-    const SurfaceNormals n = estimateNormals(pts, NormalParams(), mean);
+    const SurfaceNormals n = normalsFromMean(pts);
     EXPECT_GT(normalLineHold(pts, n.normals), 0.5);
     EXPECT_EQ(blendedFruitCenter(pts, n.normals, 2.5), estimateFruitCenter(pts, n.normals, 2.5));
   }

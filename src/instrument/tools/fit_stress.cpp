@@ -9,9 +9,10 @@
 // is not hidden by the fruit itself (a z-buffer; a touching neighbour is scanned by its own
 // camera and hides nothing), its share cut by a leaf's straight edge: a silhouette in front of
 // the centre, as a camera sees a fruit. --views cap instead cuts each view's share as a cap
-// around its direction, whose rim passes through the centre (the suite's first view model; over a
-// quarter or half of the surface its fits err small where cameras' err large): the same fruits, views, noise levels, blur, strays
-// and neighbours; the noise itself, the neighbour's side and the strays are drawn anew.
+// around its direction, whose rim passes through the centre (the suite's first view model; over
+// a quarter or half of the surface its fits err small where cameras' err large): the same
+// fruits, views, noise levels, blur, strays and neighbours; the noise itself, the neighbour's
+// side and the strays are drawn anew.
 //   fit_stress [--fruits N] [--seed S] [--json FILE] [--views camera|cap] [--max-fit-points N]
 //              [--stall-tolerance T] [--function-tolerance T] [--refit-tolerance T]
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
@@ -135,17 +136,20 @@ Case randomCase(int index, std::mt19937& rng) {
 }
 
 // Outward unit normals of the fruit's surface at `dirs` (directions of its own frame, as
-// surfacePoint takes them), by central differences across the sphere of directions.
-std::vector<Eigen::Vector3d> outwardNormals(const SyntheticFruit& fruit, const PointList& dirs) {
+// surfacePoint takes them; `surface` holds surfacePoint of each), by central differences across
+// the sphere of directions.
+std::vector<Eigen::Vector3d> outwardNormals(const SyntheticFruit& fruit, const PointList& dirs,
+                                            const PointList& surface) {
   std::vector<Eigen::Vector3d> normals;
   normals.reserve(dirs.size());
   const double h = 1e-3;
-  for (const auto& u : dirs) {
+  for (std::size_t i = 0; i < dirs.size(); ++i) {
+    const Eigen::Vector3d& u = dirs[i];
     const Eigen::Vector3d t1 = u.unitOrthogonal(), t2 = u.cross(t1);
     const Eigen::Vector3d a = fruit.surfacePoint((u + h * t1).normalized()) - fruit.surfacePoint((u - h * t1).normalized());
     const Eigen::Vector3d b = fruit.surfacePoint((u + h * t2).normalized()) - fruit.surfacePoint((u - h * t2).normalized());
     Eigen::Vector3d n = a.cross(b).normalized();
-    if (n.dot(fruit.surfacePoint(u) - fruit.center) < 0.0) n = -n;
+    if (n.dot(surface[i] - fruit.center) < 0.0) n = -n;
     normals.push_back(n);
   }
   return normals;
@@ -217,7 +221,7 @@ PointList scan(const SyntheticFruit& fruit, const std::vector<View>& views, doub
   for (const auto& d : dirs) surface.push_back(fruit.surfacePoint(d));
   std::vector<std::vector<double>> camera;
   if (camera_seed) {
-    const std::vector<Eigen::Vector3d> normals = outwardNormals(fruit, dirs);
+    const std::vector<Eigen::Vector3d> normals = outwardNormals(fruit, dirs, surface);
     for (std::size_t v = 0; v < views.size(); ++v)
       camera.push_back(cameraMargins(surface, normals, fruit, views[v], *camera_seed + static_cast<std::uint32_t>(v)));
   }

@@ -20,9 +20,7 @@ Eigen::Vector3d meanOf(const PointList& points) {
     }
   return n > 0 ? Eigen::Vector3d(mean / n) : mean;
 }
-}  // namespace
 
-namespace {
 // The normal lines' least-squares system over the points with a finite normal: sum (I - n n^T)
 // and sum (I - n n^T) p. The centre prior solves it; how firmly it holds is its weakest
 // eigenvalue per line.
