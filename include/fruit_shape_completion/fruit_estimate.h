@@ -13,6 +13,10 @@ struct FruitEstimate {
   int id = -1;         // stable from view to view while it is the same fruit
   int n_points = 0;    // points of the cluster
   Superellipsoid shape;  // the fit (meaningful when converged)
+  // The factor its axes were shrunk by for the noise bias (FitParams::noise_bias). The next fit
+  // starts from the shape before it, and the refit and axis-bound tests read that shape: they
+  // are about the least-squares fit, whose residuals the shrink does not describe.
+  double noise_scale = 1.0;
   double volume = 0.0;       // superellipsoid volume [m^3]
   double bbox_volume = 0.0;  // axis-aligned bounding box volume of the cluster's points [m^3]
   // 90 % interval of the true volume (accepted fruits; volume_interval.h) [m^3]
@@ -39,6 +43,16 @@ struct FruitEstimate {
   SharedPoints points;           // the observed points of this fruit (its cluster, or its part)
 
   Eigen::Vector3d center() const { return shape.t; }
+  // The fit's own least-squares solution, before the noise-bias shrink.
+  Superellipsoid fittedShape() const {
+    Superellipsoid s = shape;
+    if (noise_scale > 0.0) {
+      s.a /= noise_scale;
+      s.b /= noise_scale;
+      s.c /= noise_scale;
+    }
+    return s;
+  }
   // A fruit known only by its centre and volume (e.g. the planner's ROI cluster boxes).
   static FruitEstimate ofBox(const Eigen::Vector3d& center, double volume) {
     FruitEstimate f;

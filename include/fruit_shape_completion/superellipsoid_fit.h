@@ -2,7 +2,8 @@
 // Fits a posed superellipsoid (11 parameters) to a fruit's surface points with Ceres
 // Levenberg-Marquardt, minimising
 //   sum_i d_i^2 + N alpha |t - w|^2 + N gamma ((a-b)^2 + (b-c)^2 + (c-a)^2)
-// d_i the radial distance of point i, w the centre prior, N the number of points.
+// d_i the radial distance of point i, w the centre prior, N the number of points; the result is
+// then shrunk by the outward offset that noise gives such a fit (FitParams::noise_bias).
 #include <fruit_shape_completion/radial_residuals.h>
 #include <fruit_shape_completion/superellipsoid.h>
 
@@ -39,6 +40,12 @@ struct FitParams {
   double stall_tolerance = 1e-3;
   // A converged fit whose RMS radial residual exceeds this is implausible and rejected.
   double max_rms = 0.006;
+  // The fitted shape is shrunk by noise_bias x sigma^2 / R (R the geometric mean semi-axis,
+  // sigma the residuals' robust spread, 1.4826 MAD, at most the RMS and 3 mm): a point that
+  // noise moves along a curved surface lies farther from the centre than the surface, by
+  // sigma^2 / R on a sphere with isotropic noise sigma, so a radial least-squares fit lies
+  // outside the surface by about that much (3 sigma^2 / R^2 of the volume). 0: off.
+  double noise_bias = 1.0;
   // Throws std::invalid_argument naming the first bad value.
   void validate() const;
 };
@@ -49,8 +56,9 @@ struct FitResult {
   bool accepted = false;   // converged and plausible; only accepted fits are published
   std::string reason;      // why a fit was rejected; empty when accepted
   int iterations = 0;      // summed over all starts
-  double rms = 0.0;        // RMS radial residual over the points [m]
+  double rms = 0.0;        // RMS radial residual over the points [m], of the fit before its noise bias is removed
   double seconds = 0.0;    // wall time of the fit
+  double noise_scale = 1.0;  // the factor the axes were shrunk by (FitParams::noise_bias)
 };
 
 // `initial`: start from a previous fit (its shape is clamped into the bounds); otherwise the

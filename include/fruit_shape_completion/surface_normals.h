@@ -16,6 +16,12 @@ struct NormalParams {
   // still from its full neighbourhood); the rest get none. The centre prior and the shape check
   // need a few hundred normals, not thousands. 0: every point.
   int max_points = 500;
+  // A point whose neighbourhood's mean lies more than this share of `radius` from it, across
+  // its normal, sits at the edge of what was seen (a silhouette, a leaf's edge): its one-sided
+  // neighbourhood tilts the normal toward the seen side, and the normal's line then passes
+  // behind the centre. Such points get no normal (a half-disc neighbourhood's mean lies 0.42
+  // of the radius off its point). 0: off.
+  double max_edge_offset = 0.3;
 };
 
 struct SurfaceNormals {

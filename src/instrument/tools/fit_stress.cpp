@@ -311,8 +311,9 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
       o.fit_coverage = seenCoverage(f, params.missing.samples);
       o.ratio = c.volume / f.volume;
       o.rms = f.rms;
-      o.min_axis = std::min({f.shape.a, f.shape.b, f.shape.c});
-      o.max_axis = std::max({f.shape.a, f.shape.b, f.shape.c});
+      const Superellipsoid fitted = f.fittedShape();  // as the pipeline tests the axis bound
+      o.min_axis = std::min({fitted.a, fitted.b, fitted.c});
+      o.max_axis = std::max({fitted.a, fitted.b, fitted.c});
       o.e1 = f.shape.e1;
       o.e2 = f.shape.e2;
       o.inside = c.volume >= f.volume_lo && c.volume <= f.volume_hi;
@@ -348,7 +349,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--refit-tolerance", params.refit_tolerance, "the pipeline's refit_tolerance")->capture_default_str();
   app.add_option("--alpha", params.fit.alpha, "the fit's centre prior weight (fit_alpha)")->capture_default_str();
+  app.add_option("--noise-bias", params.fit.noise_bias, "the fit's noise-bias weight (fit_noise_bias)")->capture_default_str();
   app.add_option("--gamma", params.fit.gamma, "the fit's axis similarity weight (fit_gamma)")->capture_default_str();
+  app.add_option("--normal-edge-offset", params.normals.max_edge_offset,
+                 "normals of points whose neighbourhood mean lies this share of the radius off them are dropped (0: off)")
+      ->capture_default_str();
   app.add_option("--center-lambda", params.center_lambda, "the centre prior's pull toward the cluster mean")
       ->capture_default_str();
   std::string view_model = "camera";

@@ -328,7 +328,7 @@ int main(int argc, char** argv) {
       f << e.id << ',' << e.center().x() << ',' << e.center().y() << ',' << e.center().z() << ',' << e.volume * 1e6
         << ',' << e.volume_lo * 1e6 << ',' << e.volume_hi * 1e6 << ',' << e.n_points << ',' << nearest << ','
         << (nearest >= 0 ? best * 100 : -1) << ',' << seenCoverage(e, estimator.pipeline.missing.samples) << ','
-        << e.rms * 1e3 << ',' << 1e3 * std::min({e.shape.a, e.shape.b, e.shape.c}) << ',' << e.center_r90 * 1e2
+        << e.rms * 1e3 << ',' << 1e3 * std::min({e.fittedShape().a, e.fittedShape().b, e.fittedShape().c}) << ',' << e.center_r90 * 1e2
         << ',' << e.log_volume_spread << '\n';
     }
   }

@@ -74,6 +74,8 @@ void PipelineParams::validate() const {
     throw std::invalid_argument("cluster sizes must satisfy 1 <= min_size <= max_size");
   if (!(normals.radius > 0.0) || !std::isfinite(normals.radius))
     throw std::invalid_argument("normal radius must be a finite value > 0");
+  if (!(normals.max_edge_offset >= 0.0 && normals.max_edge_offset < 1.0))
+    throw std::invalid_argument("normal_max_edge_offset must be in [0, 1)");
   if (!(center_lambda >= 0.0) || !std::isfinite(center_lambda))
     throw std::invalid_argument("center lambda must be a finite value >= 0");
   if (missing.samples < 0) throw std::invalid_argument("missing-surface samples must be >= 0");
@@ -136,10 +138,11 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const
   }
   est.center_prior = blendedFruitCenter(points, normals, params_.center_lambda);
   stats->prior_seconds += secondsSince(prior_start);
-  const Superellipsoid* warm =
-      previous != nullptr && previous->estimate.accepted ? &previous->estimate.shape : nullptr;
-  const FitResult fit = fitSuperellipsoid(points, est.center_prior, params_.fit, warm);
+  const bool warm = previous != nullptr && previous->estimate.accepted;
+  const Superellipsoid start = warm ? previous->estimate.fittedShape() : Superellipsoid();
+  const FitResult fit = fitSuperellipsoid(points, est.center_prior, params_.fit, warm ? &start : nullptr);
   est.shape = fit.shape;
+  est.noise_scale = fit.noise_scale;
   est.converged = fit.converged;
   est.accepted = fit.accepted;
   est.reason = fit.reason;
@@ -178,7 +181,9 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) 
     e->missing_surface = std::move(surface);
     e->missing_normals = std::move(normals);
   }
-  const Superellipsoid& se = e->shape;
+  // The fit's own solution: whether it rests on min_axis, and the spread its residuals and
+  // Jacobian imply, are the least-squares fit's, not its shrunk copy's.
+  const Superellipsoid se = e->fittedShape();
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
   e->log_volume_spread = logVolumeSpread(e->points, se);
   const VolumeInterval ci = volumeInterval90(e->volume, seen, e->rms, e->log_volume_spread, at_bound);

@@ -56,7 +56,7 @@ int FruitShapePipeline::stillExplainedBy(const PointList& points, const std::uno
 bool FruitShapePipeline::stillFits(const FruitEstimate& fit, std::size_t fitted_points, const PointList& points) const {
   const double tolerance = 1.0 + params_.refit_tolerance;
   return fit.accepted && static_cast<double>(points.size()) <= tolerance * static_cast<double>(fitted_points) &&
-         rmsRadialDistance(points, fit.shape) <= tolerance * std::max(fit.rms, 0.001);
+         rmsRadialDistance(points, fit.fittedShape()) <= tolerance * std::max(fit.rms, 0.001);
 }
 
 void FruitShapePipeline::assignIds(std::vector<Track>* fitted, std::vector<char>* reused_tracks) {

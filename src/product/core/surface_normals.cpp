@@ -41,6 +41,10 @@ SurfaceNormals estimateNormals(const PointList& points, const NormalParams& para
     within([&](int, double, const Point& q) { m.add(q - points[i]); });
     Eigen::Vector3d normal = m.normal(params);
     if (!normal.allFinite()) return;
+    if (params.max_edge_offset > 0.0) {
+      const Eigen::Vector3d mean = m.sum / m.count;
+      if ((mean - mean.dot(normal) * normal).norm() > params.max_edge_offset * params.radius) return;
+    }
     if (normal.dot(inside - points[i]) < 0.0) normal = -normal;
     out.normals[i] = normal;
     ++out.valid;

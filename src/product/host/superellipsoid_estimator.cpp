@@ -21,6 +21,7 @@ SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorPa
   live_.max_fit_points = params.pipeline.fit.max_points;
   live_.fit_function_tolerance = params.pipeline.fit.function_tolerance;
   live_.fit_stall_tolerance = params.pipeline.fit.stall_tolerance;
+  live_.fit_noise_bias = params.pipeline.fit.noise_bias;
   targets_on_ = params.shape_targets;
 }
 
@@ -30,6 +31,7 @@ PipelineParams SuperellipsoidEstimator::pipelineWith(const EstimatorLiveParams& 
   pipeline.fit.max_points = live.max_fit_points;
   pipeline.fit.function_tolerance = live.fit_function_tolerance;
   pipeline.fit.stall_tolerance = live.fit_stall_tolerance;
+  pipeline.fit.noise_bias = live.fit_noise_bias;
   return pipeline;
 }
 

@@ -104,6 +104,7 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("cluster_min_size", p.pipeline.clustering.min_size);
   read("cluster_max_size", p.pipeline.clustering.max_size);
   read("normal_radius", p.pipeline.normals.radius);
+  read("normal_max_edge_offset", p.pipeline.normals.max_edge_offset);
   read("center_lambda", p.pipeline.center_lambda);
   read("refit_tolerance", p.pipeline.refit_tolerance);
   read("fit_threads", p.pipeline.threads);
@@ -118,6 +119,7 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("fit_function_tolerance", p.pipeline.fit.function_tolerance);
   read("fit_stall_tolerance", p.pipeline.fit.stall_tolerance);
   read("max_rms", p.pipeline.fit.max_rms);
+  read("fit_noise_bias", p.pipeline.fit.noise_bias);
   read("split_rms", p.pipeline.split_rms);
   read("one_fruit_max_rms", p.pipeline.one_fruit_max_rms);
   read("missing_surface_samples", p.pipeline.missing.samples);
