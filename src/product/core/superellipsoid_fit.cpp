@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -44,10 +43,7 @@ double wrapAngle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 // The residuals' variance as their median absolute deviation reads it (1.4826 MAD, squared):
 // the noise that moves points along the surface. A fused map's points that a view's depth offset
 // left a centimetre inside a fruit widen the RMS, not the bulk of the residuals.
-double robustResidualVariance(const std::vector<Point>& points, const Superellipsoid& shape) {
-  Eigen::VectorXd r;
-  evaluateRadialResiduals(points, shape, &r, nullptr);
-  if (r.size() < 11) return std::numeric_limits<double>::quiet_NaN();
+double robustResidualVariance(const Eigen::VectorXd& r) {
   std::vector<double> v(r.data(), r.data() + r.size());
   auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
@@ -59,17 +55,16 @@ double robustResidualVariance(const std::vector<Point>& points, const Superellip
 }
 
 // Shrinks `shape` about its centre, and returns the factor, by weight x sigma^2 / R
-// (FitParams::noise_bias), sigma^2 the robust residual variance (the RMS^2 where it cannot be
-// had, and never above it), sigma at most kMaxNoise: a 4 mm map of an RGB-D camera's depth leaves
+// (FitParams::noise_bias), sigma^2 the robust variance of its `residuals` (never above the
+// RMS^2), sigma at most kMaxNoise: a 4 mm map of an RGB-D camera's depth leaves
 // about that much noise on a fruit's surface, and residuals beyond it are misfit (lobes, a
 // fragment of a fruit, touching fruits), which moves no point outward. Never below half (only
 // reachable with a min_axis far below any fruit's size).
 constexpr double kMaxNoise = 0.003;
-double removeNoiseBias(const std::vector<Point>& points, double rms, double weight, Superellipsoid* shape) {
+double removeNoiseBias(const Eigen::VectorXd& residuals, double rms, double weight, Superellipsoid* shape) {
   const double r = std::cbrt(shape->a * shape->b * shape->c);
   if (!(weight > 0.0) || !(r > 0.0)) return 1.0;
-  const double robust = robustResidualVariance(points, *shape);
-  const double variance = std::min(kMaxNoise * kMaxNoise, std::isfinite(robust) ? std::min(robust, rms * rms) : rms * rms);
+  const double variance = std::min({kMaxNoise * kMaxNoise, robustResidualVariance(residuals), rms * rms});
   const double scale = std::max(0.5, 1.0 - weight * variance / (r * r));
   shape->a *= scale;
   shape->b *= scale;
@@ -357,10 +352,13 @@ FitResult fitSuperellipsoid(const PointList& points, const Eigen::Vector3d& cent
   se.rpy = Eigen::Vector3d(wrapAngle(best->rpy[0]), wrapAngle(best->rpy[1]), wrapAngle(best->rpy[2]));
   result.converged = best->converged;
 
-  result.rms = rmsRadialDistance(finite, se);
+  // One evaluation of the residuals for the RMS (rmsRadialDistance's) and the noise bias.
+  Eigen::VectorXd residuals;
+  evaluateRadialResiduals(finite, se, &residuals, nullptr);
+  result.rms = std::sqrt(residuals.squaredNorm() / static_cast<double>(finite.size()));
 
   if (!se.isFinite() || !std::isfinite(result.rms)) return finish("fit produced non-finite values");
-  result.noise_scale = removeNoiseBias(finite, result.rms, params.noise_bias, &se);
+  result.noise_scale = removeNoiseBias(residuals, result.rms, params.noise_bias, &se);
   if (!result.converged) {
     std::ostringstream os;
     os << "not converged after " << best->iterations << " iterations (" << best->message << ")";
