@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <thread>
 #include <fstream>
@@ -91,7 +93,7 @@ TEST(FruitShapePipeline, TwoFruitsTwoCentimetresApartAreTwoFruits) {
   for (const auto* t : {&a, &b}) {
     const FruitEstimate* f = nearest(fruits, t->t);
     EXPECT_TRUE(f->accepted) << f->reason;
-    EXPECT_LT((f->center() - t->t).norm(), 0.005);  // a 0.6-seen sphere: about one voxel, not the 5 cm of a merged fit
+    EXPECT_LT((f->center() - t->t).norm(), 0.007);  // a 0.6-seen sphere: under two voxels, not the 5 cm of a merged fit
   }
 }
 
@@ -417,6 +419,42 @@ TEST(FruitShapePipeline, ATouchingPairStaysSplitWhenTheHalfSeenNeighboursFitBulg
   ASSERT_TRUE(f->accepted) << f->reason;
   EXPECT_LT((f->center() - center).norm(), 0.003);
   EXPECT_NEAR(f->volume, true_volume, 0.1 * true_volume);
+}
+
+TEST(FruitShapePipeline, HalfSeenPeppersFromCamerasAreNotFittedLarge) {
+  // fit_stress --seed 2 (camera views), cases 62, 137 and 200: lobed peppers seen over 38-41 % of
+  // their surface by one to three cameras, blurred rims, at (0, 0, 0.5). Their points explain a
+  // deeper, larger shape a little better than the true one (the residuals fall slowly as the
+  // shape grows along the view axis), and without the size prior they were fitted 30-40 % large.
+  struct Case {
+    const char* file;
+    double volume;  // [m^3], fit_stress's volume_m3
+  };
+  const Case cases[] = {{"stress_half_seen_pepper_62.xyz", 493.1e-6},
+                        {"stress_half_seen_pepper_137.xyz", 595.5e-6},
+                        {"stress_half_seen_pepper_200.xyz", 224.1e-6}};
+  const Eigen::Vector3d center(0.0, 0.0, 0.5);
+  double sum = 0.0, sum_without = 0.0;
+  for (const Case& c : cases) {
+    const PointList cloud = readXyz(c.file);
+    ASSERT_GT(cloud.size(), 700u) << c.file;
+    FruitShapePipeline pipeline;
+    const FruitEstimate* f = acceptedAndNearest(pipeline, cloud, center).second;
+    ASSERT_TRUE(f != nullptr && f->accepted) << c.file;
+    const double accuracy = 1.0 - std::abs(f->volume - c.volume) / c.volume;
+    EXPECT_GT(accuracy, 0.7) << c.file;
+    EXPECT_LT(f->volume, 1.3 * c.volume) << c.file;
+    PipelineParams without;
+    without.fit.size_prior = 0.0;
+    FruitShapePipeline plain(without);
+    const FruitEstimate* g = acceptedAndNearest(plain, cloud, center).second;
+    ASSERT_TRUE(g != nullptr && g->accepted) << c.file;
+    sum += accuracy;
+    sum_without += 1.0 - std::abs(g->volume - c.volume) / c.volume;
+  }
+  std::printf("[ report   ] half-seen peppers from cameras: mean volume accuracy %.3f, without the size prior %.3f\n",
+              sum / 3, sum_without / 3);
+  EXPECT_GT(sum / 3, sum_without / 3 + 0.05);
 }
 
 namespace {

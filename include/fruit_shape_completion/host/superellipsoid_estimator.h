@@ -46,6 +46,7 @@ struct EstimatorLiveParams {
   int max_fit_points = 300;
   double fit_function_tolerance = 1e-6, fit_stall_tolerance = 1e-3;
   double fit_noise_bias = 1.0;
+  double fit_size_prior = 2e-6;
 };
 
 // The fruit input stage's totals, counted as views are inserted: views by source, and the points

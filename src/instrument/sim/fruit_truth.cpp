@@ -221,6 +221,7 @@ std::vector<FruitTruth> computeFruitTruth(const Scene& materials_from,
     fp.alpha = fp.gamma = 0.0;
     fp.max_rms = 1.0;  // always report it
     fp.noise_bias = 0.0;  // samples of the mesh itself: its residual is the lobes, not noise
+    fp.size_prior = 0.0;  // ... seen all round: nothing to choose between
     const FitResult fit = fitSuperellipsoid(samples, f.center, fp);
     f.se = fit.shape;
     f.se_volume = fit.shape.volume();

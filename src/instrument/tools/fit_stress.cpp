@@ -350,6 +350,7 @@ int main(int argc, char** argv) {
   app.add_option("--refit-tolerance", params.refit_tolerance, "the pipeline's refit_tolerance")->capture_default_str();
   app.add_option("--alpha", params.fit.alpha, "the fit's centre prior weight (fit_alpha)")->capture_default_str();
   app.add_option("--noise-bias", params.fit.noise_bias, "the fit's noise-bias weight (fit_noise_bias)")->capture_default_str();
+  app.add_option("--size-prior", params.fit.size_prior, "the fit's pull toward smaller shapes (fit_size_prior) [m^2]")->capture_default_str();
   app.add_option("--gamma", params.fit.gamma, "the fit's axis similarity weight (fit_gamma)")->capture_default_str();
   app.add_option("--normal-edge-offset", params.normals.max_edge_offset,
                  "normals of points whose neighbourhood mean lies this share of the radius off them are dropped (0: off)")
@@ -396,7 +397,7 @@ int main(int argc, char** argv) {
     return v;
   };
   for (const auto& r : rows)
-    out["fruits"].push_back({{"index", r.c.index}, {"kind", r.c.kind}, {"diameter_m", r.c.diameter},
+    out["fruits"].push_back({{"index", r.c.index}, {"kind", r.c.kind}, {"diameter_m", r.c.diameter}, {"volume_m3", r.c.volume},
                              {"views", r.c.views.size()}, {"view_shares", shares(r.c)}, {"coverage", r.o.coverage},
                              {"noise_m", r.c.noise},
                              {"blur_m", r.c.blur}, {"outliers", r.c.outliers}, {"neighbour", r.c.neighbour},

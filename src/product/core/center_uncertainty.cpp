@@ -36,11 +36,11 @@ double read(const double* values, double seen_share) {
 // without shape targets; one fit per true fruit, the nearest within 5 cm). A bin with fewer than 20 fits takes the
 // class below's value (scripts/calibrate_center_radius.py makes the table); made monotone (less
 // seen or a larger residual, never smaller) and rounded up to half a millimetre.
-constexpr double kRadiusMm[kClasses][kKnots] = {{13.5, 8.5, 4.5, 4.5, 4.0, 3.5, 3.5, 2.5},
-                                                {18.5, 14.0, 11.5, 9.5, 7.5, 5.5, 5.0, 4.0},
-                                                {18.5, 17.5, 17.5, 17.5, 16.5, 13.5, 11.0, 6.0}};
+constexpr double kRadiusMm[kClasses][kKnots] = {{13.0, 8.0, 4.5, 4.0, 4.0, 4.0, 3.5, 2.5},
+                                                {14.5, 14.5, 11.0, 7.5, 6.5, 5.5, 4.5, 4.0},
+                                                {18.5, 18.5, 18.5, 18.5, 13.5, 11.5, 11.5, 6.0}};
 // Fits whose shortest axis rests on its bound, pooled alike.
-constexpr double kAtBoundMm = 19.0;
+constexpr double kAtBoundMm = 20.5;
 
 }  // namespace
 

@@ -38,6 +38,22 @@ struct AxisSimilarityPrior {
   double s_;
 };
 
+// sqrt(N kappa (1 + log(abc / m^3))), m the lower axis bound: the cost N kappa log(abc) plus a
+// constant that keeps the root's argument at least N kappa within the bounds (a root of zero has
+// no derivative).
+struct SizePrior {
+  SizePrior(double weight, double min_axis) : s_(weight), m_(min_axis) {}
+  template <typename T>
+  bool operator()(const T* shape, T* residual) const {
+    using std::log;
+    using std::sqrt;
+    const T l = T(1.0) + log(shape[0] / T(m_)) + log(shape[1] / T(m_)) + log(shape[2] / T(m_));
+    residual[0] = sqrt(T(s_) * l);
+    return true;
+  }
+  double s_, m_;
+};
+
 double wrapAngle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 
 // The residuals' variance as their median absolute deviation reads it (1.4826 MAD, squared):
@@ -92,6 +108,7 @@ void FitParams::validate() const {
   if (!(stall_tolerance >= 0.0 && stall_tolerance < 1.0)) fail("stall_tolerance must be in [0, 1)");
   if (!(max_rms > 0.0)) fail("max_rms must be > 0");
   if (!(noise_bias >= 0.0 && noise_bias <= 3.0)) fail("noise_bias must be in [0, 3]");
+  if (!(size_prior >= 0.0 && size_prior <= 1e-4)) fail("size_prior must be in [0, 1e-4]");
 }
 
 namespace {
@@ -200,6 +217,10 @@ void solve(const std::vector<Point>& points, const Eigen::Vector3d& center_prior
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CenterPrior, 3, 3>(
                                  new CenterPrior(center_prior, n * params.alpha)),
                              nullptr, sol.t);
+  if (params.size_prior > 0.0)
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SizePrior, 1, 5>(
+                                 new SizePrior(n * params.size_prior, params.min_axis)),
+                             nullptr, sol.shape);
   if (params.gamma > 0.0)
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<AxisSimilarityPrior, 3, 5>(
                                  new AxisSimilarityPrior(n * params.gamma)),

@@ -21,25 +21,25 @@ namespace {
 // shape targets; another fruit shape), all under the upstream-emulating planner. Each group alone
 // misleads on the others: how closely a superellipsoid's volume matches a fully seen fruit
 // depends on the fruit's shape family. Views cut at a plane through the fruit (the suite's caps)
-// are not pooled: their fits err small where cameras' err large, and pooled with both the
+// are not pooled: their fits err small more often than cameras', and pooled with both the
 // interval had to be wide enough for either. The slopes' signs are held so that a larger spread
 // or residual never narrows the interval and more of the fruit seen never widens it; on this
 // pool the seen share adds nothing the spread does not say (both its slopes are 0). The spread
 // says which fits the points pin down (a half-seen fruit whose depth they leave free); the
 // residual what the spread cannot: blurred depth and shapes that no superellipsoid matches
-// exactly. Where the points leave the size free the interval reaches further below the fit than
-// above: a camera sees a fruit up to its silhouette, and fits of such views err large more often
-// than small.
+// exactly. Where the points leave the size free, or the residual is large, the interval reaches
+// further above the fit than below (in ratio): the fit's size prior takes the smaller of the
+// shapes such points leave alike, and fragments of a fruit fit small.
 constexpr int kTerms = 5;
-constexpr double kLo[kTerms] = {-0.5990, -0.1234, 0.0, -0.0146, -0.0049};
-constexpr double kHi[kTerms] = {0.3047, 0.0539, 0.0, 0.0153, 0.0575};
+constexpr double kLo[kTerms] = {-0.4559, -0.0976, 0.0, -0.0247, -0.0033};
+constexpr double kHi[kTerms] = {0.6310, 0.1238, 0.0, 0.0, 0.1063};
 constexpr double kRmsKneeMm[2] = {3.5, 5.5};
 // The ranges the pool covers: the model reads its inputs clamped into them (below the smallest
 // spread a straight line would leave the fit itself outside its interval).
 constexpr double kSpreadMin = 0.01, kSpreadMax = 0.5, kRmsMinMm = 1.0, kRmsMaxMm = 8.0;
 // A fit whose shortest axis rests on its lower bound was sized by the bound, not by its points
 // (a small patch of a larger fruit): its volume is nearly a floor. Pooled percentiles of such fits.
-constexpr double kAtBoundLo = 0.79, kAtBoundHi = 2.9;
+constexpr double kAtBoundLo = 0.88, kAtBoundHi = 3.3;
 
 }  // namespace
 

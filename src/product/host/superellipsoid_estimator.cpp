@@ -22,6 +22,7 @@ SuperellipsoidEstimator::SuperellipsoidEstimator(const SuperellipsoidEstimatorPa
   live_.fit_function_tolerance = params.pipeline.fit.function_tolerance;
   live_.fit_stall_tolerance = params.pipeline.fit.stall_tolerance;
   live_.fit_noise_bias = params.pipeline.fit.noise_bias;
+  live_.fit_size_prior = params.pipeline.fit.size_prior;
   targets_on_ = params.shape_targets;
 }
 
@@ -32,6 +33,7 @@ PipelineParams SuperellipsoidEstimator::pipelineWith(const EstimatorLiveParams& 
   pipeline.fit.function_tolerance = live.fit_function_tolerance;
   pipeline.fit.stall_tolerance = live.fit_stall_tolerance;
   pipeline.fit.noise_bias = live.fit_noise_bias;
+  pipeline.fit.size_prior = live.fit_size_prior;
   return pipeline;
 }
 

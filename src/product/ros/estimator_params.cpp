@@ -120,6 +120,7 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("fit_stall_tolerance", p.pipeline.fit.stall_tolerance);
   read("max_rms", p.pipeline.fit.max_rms);
   read("fit_noise_bias", p.pipeline.fit.noise_bias);
+  read("fit_size_prior", p.pipeline.fit.size_prior);
   read("split_rms", p.pipeline.split_rms);
   read("one_fruit_max_rms", p.pipeline.one_fruit_max_rms);
   read("missing_surface_samples", p.pipeline.missing.samples);

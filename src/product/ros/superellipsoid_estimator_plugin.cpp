@@ -446,6 +446,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     assign(c.fit_function_tolerance, p.fit_function_tolerance);
     assign(c.fit_stall_tolerance, p.fit_stall_tolerance);
     assign(c.fit_noise_bias, p.fit_noise_bias);
+    assign(c.fit_size_prior, p.fit_size_prior);
   }
   // "name old -> new" for each parameter that differs.
   static std::string describeChanges(const SuperellipsoidConfig& a, const SuperellipsoidConfig& b) {
