@@ -4,8 +4,8 @@
 // table, pooled from the stress suite and scenario episodes as the volume interval
 // (volume_interval.h) is: the solver's own covariance of the centre comes out about five times
 // too small, since what moves a half-seen fruit's centre is its shape and the prior, not
-// independent noise (docs/benchmarks.md, "A centre uncertainty"; the current table: "The volume
-// interval and centre radius pooled on camera views").
+// independent noise (docs/benchmarks.md, "A centre uncertainty"; the current table: "A pull
+// toward smaller shapes").
 namespace fruit_shape_completion {
 
 // [m]. `seen_share`: the fit's seen share (shape_targets.h seenCoverage); `rms`: its RMS radial

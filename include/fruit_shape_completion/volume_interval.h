@@ -5,7 +5,7 @@
 // of true / fitted volume as functions of these, pooled over the fit stress suite (fit_stress,
 // random fruits as cameras see them, with noise, blur, outliers and touching neighbours),
 // scenario episodes and procedural scenes; checked on another draw and other episodes
-// (docs/benchmarks.md, "The volume interval and centre radius pooled on camera views").
+// (docs/benchmarks.md, "A pull toward smaller shapes").
 #include <fruit_shape_completion/fruit_estimate.h>
 
 namespace fruit_shape_completion {

@@ -50,8 +50,9 @@ Score fitAndScore(const SyntheticFruit& fruit, double seen, unsigned seed, const
 // on 4 mm voxel centres, 1 mm noise, `seen` of the surface visible as a cap around a random
 // direction. Asserts the mean over 20 fruits and a floor for every single one. Also reports the
 // mean without the size prior: a cap's rim is the fruit's widest outline, so of the shapes its
-// points leave alike the smaller ones are too small (cameras see less than that, and their fits
-// err large; fit_stress's camera views).
+// points leave alike the smaller ones are too small (a camera sees less than that, up to an
+// outline in front of the centre, and there the larger ones are too large; fit_stress's camera
+// views).
 void checkRandomFruits(double seen, double min_mean_accuracy, double max_mean_center_error,
                        double floor_accuracy, unsigned seed_base) {
   double acc_sum = 0, err_sum = 0, worst_acc = 1, worst_err = 0, plain_sum = 0;

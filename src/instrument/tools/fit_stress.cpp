@@ -10,7 +10,7 @@
 // camera and hides nothing), its share cut by a leaf's straight edge: a silhouette in front of
 // the centre, as a camera sees a fruit. --views cap instead cuts each view's share as a cap
 // around its direction, whose rim passes through the centre (the suite's first view model; over
-// a quarter or half of the surface its fits err small where cameras' err large): the same
+// a quarter or half of the surface its fits err smaller than cameras'): the same
 // fruits, views, noise levels, blur, strays and neighbours; the noise itself, the neighbour's
 // side and the strays are drawn anew.
 //   fit_stress [--fruits N] [--seed S] [--json FILE] [--views camera|cap] [--max-fit-points N]

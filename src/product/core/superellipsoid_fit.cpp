@@ -40,7 +40,8 @@ struct AxisSimilarityPrior {
 
 // sqrt(N kappa (1 + log(abc / m^3))), m the lower axis bound: the cost N kappa log(abc) plus a
 // constant that keeps the root's argument at least N kappa within the bounds (a root of zero has
-// no derivative).
+// no derivative). The stopping rules' relative tolerances read that constant as cost too (about
+// the data's own at a 2-3 mm RMS): the defaults were measured with it.
 struct SizePrior {
   SizePrior(double weight, double min_axis) : s_(weight), m_(min_axis) {}
   template <typename T>
