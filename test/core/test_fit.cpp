@@ -165,7 +165,8 @@ TEST(SuperellipsoidFit, SmallCapsFitFromTheSphereThroughTheirPoints) {
     with_edges.max_edge_offset = 0.0;
     // The blend was made for fits without the size prior (FitParams::size_prior), which on caps
     // like these also picks the smaller shapes; with both the normal lines alone fit these caps
-    // better (docs/benchmarks.md, "A pull toward smaller shapes").
+    // better, while camera views still gain from the blend (docs/benchmarks.md, "A pull toward
+    // smaller shapes").
     FitParams no_size_prior;
     no_size_prior.size_prior = 0.0;
     const SurfaceNormals n = normalsFromMean(pts, with_edges), inner = normalsFromMean(pts);
