@@ -357,10 +357,10 @@ TEST(SuperellipsoidFit, WarmStartFromAPreviousFitConvergesFaster) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& p : pts) mean += p / pts.size();
   // As the pipeline does: from the fit's own solution, before its noise-bias shrink.
-  Superellipsoid start = cold.shape;
-  start.a /= cold.noise_scale;
-  start.b /= cold.noise_scale;
-  start.c /= cold.noise_scale;
+  FruitEstimate previous;
+  previous.shape = cold.shape;
+  previous.noise_scale = cold.noise_scale;
+  const Superellipsoid start = previous.fittedShape();
   const FitResult warm = fitSuperellipsoid(pts, cold.shape.t, FitParams(), &start);
   ASSERT_TRUE(warm.accepted);
   EXPECT_LT(warm.iterations, cold.iterations);
