@@ -1,16 +1,18 @@
 #!/usr/bin/env python3
 """Makes and checks the model of volume_interval.cpp: the 5th and 95th percentiles of
 log(true / fitted volume) as linear functions of the log of the fit's log-volume
-spread (the spread its residuals and Jacobian imply), its seen share and its RMS residual beyond
-3.5 and 5.5 mm, fitted by weighted linear quantile regression, with the floor for fits sized by
+spread (the spread its residuals and Jacobian imply), its seen share, its RMS residual beyond
+3.5 and 5.5 mm and how few views saw it (log(MANY_VIEWS / views) when fewer; the suite's clouds
+have no count), fitted by weighted linear quantile regression, with the floor for fits sized by
 the axis bound.
 
   scripts/calibrate_volume_interval.py --suite stress_seed1.json --episodes DIR[,DIR...] \
       [--episodes DIR[,DIR...]] [--check-suite stress_seed2.json] [--check-episodes DIR[,DIR...]]
 
 --suite: `fit_stress --json` output; --episodes (repeatable, one group each): run_trials output
-folders (their final_fruits_*.csv and truth.csv; one fit per true fruit, the nearest within
-5 cm). The suite and each group of episodes weigh alike. Prints the coefficients and, for the
+folders (their final_fruits_*.csv, with the views column, and truth.csv; one fit per true fruit,
+the nearest within 5 cm). Episodes run for 60 or 120 s give the fits a user reads before a run
+ends. The suite and each group of episodes weigh alike. Prints the coefficients and, for the
 --check sets, the share of true volumes inside the interval and the median half-width for fruits
 seen half or more (the suite: by the share of the surface its views saw; episodes: by the fit's
 seen share). Needs numpy and scipy (Debian: python3-numpy, python3-scipy).
@@ -30,28 +32,32 @@ AT_BOUND_MM = 20.5  # a shortest axis within 2.5 % of min_axis (20 mm), as the p
 SPREAD = (0.01, 0.5)
 RMS_MM = (1.0, 8.0)
 RMS_KNEES_MM = (3.5, 5.5)  # the residual widens the interval beyond each of these
+MANY_VIEWS = 6.0  # fits seen in fewer views get a wider interval (0 views: not counted)
 # The quantiles fitted: the 5th and 95th percentiles.
 QUANTILES = (0.05, 0.95)
 
 
 def suite_rows(path):
-    """(seen share, rms mm, min axis mm, spread, true / fitted volume, true coverage) of the found fruits."""
+    """(seen share, rms mm, min axis mm, spread, true / fitted volume, true coverage, views) of the
+    found fruits; the suite's clouds have no view count (0)."""
     rows = []
     def number(v):  # JSON writes a non-finite value as null
         return float('nan') if v is None else float(v)
     for f in json.load(open(path))['fruits']:
         if f['found']:
             rows.append((number(f['fit_coverage']), 1e3 * number(f['rms_m']), 1e3 * number(f['fit_min_axis_m']),
-                         number(f['log_volume_spread']), number(f['true_over_fitted_volume']), number(f['coverage'])))
+                         number(f['log_volume_spread']), number(f['true_over_fitted_volume']), number(f['coverage']), 0))
     return np.array(rows)
 
 
 def episode_rows(dirs):
     rows = []
     for r, truth, _ in matched_fits(dirs):
+        if 'views' not in r:
+            raise SystemExit('calibrate_volume_interval: final_fruits CSVs without a views column in ' + ','.join(dirs))
         seen = float(r['seen_share'])
         rows.append((seen, float(r['rms_mm']), float(r['min_axis_mm']), float(r['log_volume_spread']),
-                     float(truth['volume_cm3']) / float(r['volume_cm3']), seen))
+                     float(truth['volume_cm3']) / float(r['volume_cm3']), seen, max(1, int(r['views']))))
     return np.array(rows)
 
 
@@ -59,8 +65,10 @@ def features(rows):
     spread = np.where(np.isfinite(rows[:, 3]), rows[:, 3], SPREAD[1])
     rms = np.clip(np.where(np.isfinite(rows[:, 1]), rows[:, 1], RMS_MM[1]), *RMS_MM)
     seen = np.clip(np.where(np.isfinite(rows[:, 0]), rows[:, 0], 0.0), 0, 1)  # as the C++: nonsense reads as unseen
+    views = rows[:, 6]
+    few_views = np.where(views > 0, np.maximum(0.0, np.log(MANY_VIEWS / np.maximum(views, 1))), 0.0)
     return np.column_stack([np.ones(len(rows)), np.log(np.clip(spread, *SPREAD)), seen,
-                            np.maximum(rms - RMS_KNEES_MM[0], 0), np.maximum(rms - RMS_KNEES_MM[1], 0)])
+                            np.maximum(rms - RMS_KNEES_MM[0], 0), np.maximum(rms - RMS_KNEES_MM[1], 0), few_views])
 
 
 def quantile_regression(X, y, w, q, signs):
@@ -83,10 +91,10 @@ def make_model(parts):
     rows = np.vstack([p[p[:, 2] > AT_BOUND_MM] for p in parts])
     w = np.concatenate([np.full((p[:, 2] > AT_BOUND_MM).sum(), 1.0 / (p[:, 2] > AT_BOUND_MM).sum()) for p in parts])
     X, y = features(rows), np.log(rows[:, 4])
-    # Monotone by construction: a larger spread or residual never narrows the interval, more of
-    # the fruit seen never widens it.
-    lo = quantile_regression(X, y, w, QUANTILES[0], [0, -1, 1, -1, -1])
-    hi = quantile_regression(X, y, w, QUANTILES[1], [0, 1, -1, 1, 1])
+    # Monotone by construction: a larger spread or residual, or fewer views, never narrow the
+    # interval, more of the fruit seen never widens it.
+    lo = quantile_regression(X, y, w, QUANTILES[0], [0, -1, 1, -1, -1, -1])
+    hi = quantile_regression(X, y, w, QUANTILES[1], [0, 1, -1, 1, 1, 1])
     at_bound = np.vstack([p[p[:, 2] <= AT_BOUND_MM] for p in parts])
     if len(at_bound) < 20:
         raise SystemExit('calibrate_volume_interval: fewer than 20 fits at the axis bound')
@@ -127,7 +135,7 @@ def main():
         if len(part) == 0:
             raise SystemExit('calibrate_volume_interval: no fits in ' + name)
     model = make_model(parts)
-    print('features: 1, log(spread), seen share, RMS beyond 3.5 mm, RMS beyond 5.5 mm')
+    print(f'features: 1, log(spread), seen share, RMS beyond 3.5 mm, RMS beyond 5.5 mm, log({MANY_VIEWS:g} / views) when fewer')
     print('lower end of log(true / fitted):', ', '.join(f'{v:.4f}' for v in model[0]))
     print('upper end:                      ', ', '.join(f'{v:.4f}' for v in model[1]))
     print(f'at the axis bound ({model[4]} fits): {model[2]:.2f} - {model[3]:.1f}')

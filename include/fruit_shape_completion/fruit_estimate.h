@@ -28,6 +28,14 @@ struct FruitEstimate {
   // fruits, else NaN; volume_interval.h logVolumeSpread): large where the points leave the size
   // free.
   double log_volume_spread = std::numeric_limits<double>::quiet_NaN();
+  // The share of the fitted surface its points cover (accepted fruits; shape_targets.h
+  // seenCoverage), and whether the fit's shortest axis rests on its lower bound: with `views`
+  // and the above, what the volume interval is made from.
+  double seen_share = std::numeric_limits<double>::quiet_NaN();
+  bool size_at_bound = false;
+  // The views that saw this fruit, where they are counted (SuperellipsoidEstimator: its sightings
+  // log's count, since a reset, at least 1); 0: not counted (a cloud given whole, as fit_cloud's).
+  int views = 0;
   Eigen::Vector3d points_centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d center_prior = Eigen::Vector3d::Zero();  // w
   bool converged = false;

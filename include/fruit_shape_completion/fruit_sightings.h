@@ -1,5 +1,6 @@
 #pragma once
-// Which views saw which fruit, for the fruit report: a view saw a fruit when at least three of
+// Which views saw which fruit, for the fruit report and the volume interval (a fruit seen in few
+// views keeps their depth errors; volume_interval.h): a view saw a fruit when at least three of
 // its fruit points lie within 1 cm of the fruit's fitted surface. Views are matched at the next
 // update against that update's fruits; a fruit fitted for the first time is also matched against
 // the last `kept_views` views, so that the views that found it count. Memory is bounded: each

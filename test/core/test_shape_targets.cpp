@@ -154,12 +154,32 @@ TEST(VolumeInterval, WidensWithTheSpreadAndTheResidualAndNeverAsMoreIsSeen) {
     for (double spread : spreads)
       for (double seen : seens)
         EXPECT_GE(width(spread, seen, residuals[i]), width(spread, seen, residuals[i - 1]) - 1e-15) << residuals[i];
+  // Fewer views never narrow it; a cloud given whole (no count) reads as seen in many views.
+  for (double spread : spreads)
+    for (double seen : seens)
+      for (double rms : residuals) {
+        const VolumeInterval cloud = volumeInterval90(v, seen, rms, spread, false, 0);
+        for (int views = 1; views <= 12; ++views) {
+          const VolumeInterval fewer = volumeInterval90(v, seen, rms, spread, false, views);
+          const VolumeInterval more = volumeInterval90(v, seen, rms, spread, false, views + 1);
+          EXPECT_LE(fewer.lo, more.lo) << views;
+          EXPECT_GE(fewer.hi, more.hi) << views;
+        }
+        const VolumeInterval many = volumeInterval90(v, seen, rms, spread, false, 50);
+        EXPECT_EQ(cloud.lo, many.lo);
+        EXPECT_EQ(cloud.hi, many.hi);
+      }
   // The calibration's figures (volume_interval.cpp): a fruit seen all round whose points pin its
-  // size down, about -5 / +12 %; half seen with its depth left free, several times that.
+  // size down, about -5 / +12 % (from a cloud, or seen in six views or more), -20 / +76 % seen in
+  // one view; half seen with its depth left free, several times that.
   const VolumeInterval pinned = volumeInterval90(v, 1.0, 0.002, 0.015);
+  const VolumeInterval one_view = volumeInterval90(v, 1.0, 0.002, 0.015, false, 1);
   const VolumeInterval loose = volumeInterval90(v, 0.5, 0.003, 0.15);
-  EXPECT_NEAR(pinned.lo / v, 0.955, 0.001);
-  EXPECT_NEAR(pinned.hi / v, 1.117, 0.001);
+  EXPECT_NEAR(pinned.lo / v, 0.950, 0.001);
+  EXPECT_NEAR(pinned.hi / v, 1.115, 0.001);
+  EXPECT_EQ(volumeInterval90(v, 1.0, 0.002, 0.015, false, 6).lo, pinned.lo);
+  EXPECT_NEAR(one_view.lo / v, 0.803, 0.001);
+  EXPECT_NEAR(one_view.hi / v, 1.763, 0.001);
   EXPECT_GT(0.5 * (loose.hi - loose.lo) / v, 0.25);
   // Nonsense in, the widest interval out.
   const VolumeInterval bad = volumeInterval90(v, std::nan(""), std::nan(""), std::nan(""));

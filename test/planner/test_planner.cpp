@@ -1,5 +1,6 @@
 #include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/host/update_worker.h>
+#include <fruit_shape_completion/volume_interval.h>
 #include <fruit_shape_completion/instrument/planner/viewpoint_planner.h>
 #include <fruit_shape_completion/instrument/sim/fruit_truth.h>
 #include <fruit_shape_completion/instrument/sim/procedural_scene.h>
@@ -414,6 +415,43 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
   EXPECT_GT(queries.load(), 0);
   ASSERT_EQ(est.fruits().size(), 1u);
   EXPECT_NEAR(est.fruits()[0].volume, truth.volume(), 0.1 * truth.volume());
+}
+
+// Each fruit carries the views that saw it, and its volume interval reads them: a view's depth
+// error is shared by all its points, so a fruit seen in few views is given a wider interval than
+// the same fit would get from a cloud (no count) or from many views.
+TEST(SuperellipsoidEstimator, AFruitsIntervalWidensWhenFewViewsSawIt) {
+  SuperellipsoidEstimator est;
+  std::mt19937 rng(2);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  for (int v = 0; v < 8; ++v) {
+    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
+    est.insertView(view.data(v));
+    est.update();
+    const std::vector<FruitEstimate> fruits = est.fruits();
+    ASSERT_EQ(fruits.size(), 1u) << "view " << v;
+    const FruitEstimate& f = fruits[0];
+    EXPECT_EQ(f.views, v + 1);
+    EXPECT_EQ(est.sightings().at(f.id).views, f.views);
+    const VolumeInterval counted = volumeInterval90(f);
+    EXPECT_EQ(f.volume_lo, counted.lo);
+    EXPECT_EQ(f.volume_hi, counted.hi);
+    FruitEstimate as_cloud = f, many = f;
+    as_cloud.views = 0;
+    many.views = 100;
+    const VolumeInterval cloud = volumeInterval90(as_cloud), most = volumeInterval90(many);
+    EXPECT_EQ(cloud.lo, most.lo);
+    EXPECT_EQ(cloud.hi, most.hi);
+    ASSERT_FALSE(f.size_at_bound);  // the bound's floor would hide the views
+    if (f.views < 6) {
+      EXPECT_LE(counted.lo, cloud.lo) << "view " << v;
+      EXPECT_GE(counted.hi, cloud.hi) << "view " << v;
+      EXPECT_GT(counted.hi - counted.lo, cloud.hi - cloud.lo) << "view " << v;
+    } else {
+      EXPECT_EQ(counted.lo, cloud.lo) << "view " << v;
+      EXPECT_EQ(counted.hi, cloud.hi) << "view " << v;
+    }
+  }
 }
 
 // The bytes saveMap writes (empty, with a test failure, if it fails).

@@ -1,7 +1,6 @@
 #include "fruit_text.h"
 
 #include <fruit_shape_completion/missing_surface.h>
-#include <fruit_shape_completion/shape_targets.h>
 
 #include <cmath>
 #include <cstdio>
@@ -28,7 +27,7 @@ nlohmann::json fruitJson(const FruitEstimate& f) {
           // the true centre lies within this distance of "center" in 90 % of such fits
           {"center_r90_m", f.accepted ? nlohmann::json(f.center_r90) : nlohmann::json()},
           // the share of the fitted surface its points cover, which the interval is made from
-          {"seen_share", f.accepted ? nlohmann::json(seenCoverage(f, MissingSurfaceParams().samples)) : nlohmann::json()},
+          {"seen_share", f.accepted ? nlohmann::json(f.seen_share) : nlohmann::json()},
           // how far the points alone pin the size down, which the interval is also made from
           {"log_volume_spread",
            f.accepted && std::isfinite(f.log_volume_spread) ? nlohmann::json(f.log_volume_spread) : nlohmann::json()},

@@ -314,10 +314,10 @@ int main(int argc, char** argv) {
   }
   for (int k = 0; k < trials; ++k) {
     std::ofstream f(out + "/final_fruits_" + std::to_string(k) + ".csv");
-    // seen_share, rms_mm, min_axis_mm and log_volume_spread are what the volume interval and the
-    // centre radius are made from.
+    // seen_share, rms_mm, min_axis_mm, log_volume_spread and views are what the volume interval is
+    // made from (the centre radius: seen_share, rms_mm and min_axis_mm).
     f << "id,x,y,z,volume_cm3,volume_ci90_lo_cm3,volume_ci90_hi_cm3,points,nearest_truth,distance_cm,seen_share,rms_mm,"
-         "min_axis_mm,center_r90_cm,log_volume_spread\n";
+         "min_axis_mm,center_r90_cm,log_volume_spread,views\n";
     for (const auto& e : results[k].final_fruits) {
       const Superellipsoid fitted = e.fittedShape();  // the axis bound is the fit's own
       int nearest = -1;
@@ -328,9 +328,9 @@ int main(int argc, char** argv) {
       }
       f << e.id << ',' << e.center().x() << ',' << e.center().y() << ',' << e.center().z() << ',' << e.volume * 1e6
         << ',' << e.volume_lo * 1e6 << ',' << e.volume_hi * 1e6 << ',' << e.n_points << ',' << nearest << ','
-        << (nearest >= 0 ? best * 100 : -1) << ',' << seenCoverage(e, estimator.pipeline.missing.samples) << ','
+        << (nearest >= 0 ? best * 100 : -1) << ',' << e.seen_share << ','
         << e.rms * 1e3 << ',' << 1e3 * std::min({fitted.a, fitted.b, fitted.c}) << ',' << e.center_r90 * 1e2
-        << ',' << e.log_volume_spread << '\n';
+        << ',' << e.log_volume_spread << ',' << e.views << '\n';
     }
   }
 

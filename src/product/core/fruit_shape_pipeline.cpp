@@ -186,7 +186,9 @@ void FruitShapePipeline::predictMissing(FruitEstimate* e, PipelineStats* stats) 
   const Superellipsoid se = e->fittedShape();
   const bool at_bound = std::min({se.a, se.b, se.c}) <= 1.025 * params_.fit.min_axis;
   e->log_volume_spread = logVolumeSpread(e->points, se);
-  const VolumeInterval ci = volumeInterval90(e->volume, seen, e->rms, e->log_volume_spread, at_bound);
+  e->seen_share = seen;
+  e->size_at_bound = at_bound;
+  const VolumeInterval ci = volumeInterval90(*e);
   e->volume_lo = ci.lo;
   e->volume_hi = ci.hi;
   e->center_r90 = centerRadius90(seen, e->rms, at_bound);

@@ -12,34 +12,37 @@ namespace fruit_shape_completion {
 namespace {
 
 // The 5th and 95th percentiles of log(true / fitted volume) as linear functions of (1, log of the
-// fit's log-volume spread, seen share, RMS radial residual beyond 3.5 mm, beyond 5.5 mm [mm]), by
-// linear quantile regression (scripts/calibrate_volume_interval.py) on a pool of three groups
-// that weigh alike: the stress suite with camera views (fit_stress --fruits 1000 --seed 1:
-// synthetic superellipsoids and lobed peppers, each view cut at the fruit's silhouette as a
-// camera sees it), 160 paper-profile episodes of scenarios 1 and 2 (real capsicum meshes; seeds
-// 1-40, with and without shape targets) and 40 of procedural:1 and :2 (seeds 1-20 each, with
-// shape targets; another fruit shape), all under the upstream-emulating planner. Each group alone
-// misleads on the others: how closely a superellipsoid's volume matches a fully seen fruit
-// depends on the fruit's shape family. Views cut at a plane through the fruit (the suite's caps)
-// are not pooled: their fits err small more often than cameras', and pooled with both the
-// interval had to be wide enough for either. The slopes' signs are held so that a larger spread
-// or residual never narrows the interval and more of the fruit seen never widens it; on this
-// pool the seen share adds nothing the spread does not say (both its slopes are 0). The spread
-// says which fits the points pin down (a half-seen fruit whose depth they leave free); the
-// residual what the spread cannot: blurred depth and shapes that no superellipsoid matches
-// exactly. Where the points leave the size free, or the residual is large, the interval reaches
-// further above the fit than below (in ratio): the fit's size prior takes the smaller of the
-// shapes such points leave alike, and fragments of a fruit fit small.
-constexpr int kTerms = 5;
-constexpr double kLo[kTerms] = {-0.4559, -0.0976, 0.0, -0.0247, -0.0033};
-constexpr double kHi[kTerms] = {0.6310, 0.1238, 0.0, 0.0, 0.1063};
+// fit's log-volume spread, seen share, RMS radial residual beyond 3.5 mm, beyond 5.5 mm [mm], how
+// few views saw it: log(kManyViews / views) when fewer), by linear quantile regression
+// (scripts/calibrate_volume_interval.py) on a pool of groups that weigh alike: the stress suite
+// with camera views (fit_stress --fruits 1000 --seed 1: synthetic superellipsoids and lobed
+// peppers, each view cut at the fruit's silhouette as a camera sees it; clouds, so no view count),
+// paper-profile episodes of scenarios 1 and 2 (real capsicum meshes; final fits of seeds 1-40,
+// with and without shape targets), the same scenarios' fits after 60 and 120 s (fits a user reads
+// before the run ends: seen in fewer views), and procedural:1 and :2 (another fruit shape), all
+// under the upstream-emulating planner. Each group alone misleads on the others: how closely a
+// superellipsoid's volume matches a fully seen fruit depends on the fruit's shape family. Views
+// cut at a plane through the fruit (the suite's caps) are not pooled: their fits err small more
+// often than cameras'. The slopes' signs are held so that a larger spread or residual, or fewer
+// views, never narrow the interval and more of the fruit seen never widens it. The spread says
+// which fits the points pin down (a half-seen fruit whose depth they leave free); the residual
+// what the spread cannot: blurred depth and shapes that no superellipsoid matches exactly; the
+// views what neither can: each view's depth error is shared by all its points (the paper
+// profile's structured noise), so a fruit seen in one or two views is as far off as that error,
+// and more views average it out. Where the points leave the size free, or the residual is large,
+// the interval reaches further above the fit than below (in ratio): the fit's size prior takes
+// the smaller of the shapes such points leave alike, and fragments of a fruit fit small.
+constexpr int kTerms = 6;
+constexpr double kLo[kTerms] = {-0.4552, -0.0962, 0.0, -0.0251, -0.0024, -0.0936};
+constexpr double kHi[kTerms] = {0.4881, 0.0903, 0.0, 0.0, 0.0198, 0.2558};
+constexpr double kManyViews = 6.0;
 constexpr double kRmsKneeMm[2] = {3.5, 5.5};
 // The ranges the pool covers: the model reads its inputs clamped into them (below the smallest
 // spread a straight line would leave the fit itself outside its interval).
 constexpr double kSpreadMin = 0.01, kSpreadMax = 0.5, kRmsMinMm = 1.0, kRmsMaxMm = 8.0;
 // A fit whose shortest axis rests on its lower bound was sized by the bound, not by its points
 // (a small patch of a larger fruit): its volume is nearly a floor. Pooled percentiles of such fits.
-constexpr double kAtBoundLo = 0.88, kAtBoundHi = 3.3;
+constexpr double kAtBoundLo = 0.89, kAtBoundHi = 3.5;
 
 }  // namespace
 
@@ -84,14 +87,17 @@ double logVolumeSpread(const PointList& points, const Superellipsoid& shape) {
 }
 
 VolumeInterval volumeInterval90(double volume, double seen_share, double rms, double log_volume_spread,
-                                bool size_at_bound) {
+                                bool size_at_bound, int views) {
   // Nonsense reads as the least favourable: nothing seen, the largest spread and residual.
   const double spread =
       std::isfinite(log_volume_spread) ? std::clamp(log_volume_spread, kSpreadMin, kSpreadMax) : kSpreadMax;
   const double seen = std::isfinite(seen_share) ? std::clamp(seen_share, 0.0, 1.0) : 0.0;
   const double rms_mm = std::isfinite(rms) ? std::clamp(1e3 * rms, kRmsMinMm, kRmsMaxMm) : kRmsMaxMm;
+  // Not counted (a cloud given whole) reads as the suite's clouds, calibrated without a count; a
+  // negative count as one view.
+  const double few_views = views == 0 ? 0.0 : std::max(0.0, std::log(kManyViews / std::max(1, views)));
   const double x[kTerms] = {1.0, std::log(spread), seen, std::max(0.0, rms_mm - kRmsKneeMm[0]),
-                            std::max(0.0, rms_mm - kRmsKneeMm[1])};
+                            std::max(0.0, rms_mm - kRmsKneeMm[1]), few_views};
   double log_lo = 0.0, log_hi = 0.0;
   for (int k = 0; k < kTerms; ++k) {
     log_lo += kLo[k] * x[k];
@@ -103,6 +109,11 @@ VolumeInterval volumeInterval90(double volume, double seen_share, double rms, do
     hi = std::max(hi, kAtBoundHi);
   }
   return {lo * volume, hi * volume};
+}
+
+VolumeInterval volumeInterval90(const FruitEstimate& fruit) {
+  return volumeInterval90(fruit.volume, fruit.seen_share, fruit.rms, fruit.log_volume_spread, fruit.size_at_bound,
+                          fruit.views);
 }
 
 }  // namespace fruit_shape_completion
