@@ -378,14 +378,17 @@ struct PartialView {
   ViewData data(double time) const { return ViewData{fruit, none, pose, time}; }
 };
 
-// Six partial views of one random fruit into `est`, each followed by a fit; returns the fruit.
-Superellipsoid mapSixPartialViews(SuperellipsoidEstimator& est) {
+// `views` partial views of one random fruit into `est`, each followed by a fit and by
+// `after_fit(view index)`; returns the fruit.
+Superellipsoid mapPartialViews(SuperellipsoidEstimator& est, int views = 6,
+                               const std::function<void(int)>& after_fit = nullptr) {
   std::mt19937 rng(2);
   const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  for (int v = 0; v < 6; ++v) {
+  for (int v = 0; v < views; ++v) {
     const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
     est.insertView(view.data(v));
     est.update();
+    if (after_fit) after_fit(v);
   }
   return truth;
 }
@@ -409,7 +412,7 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
       ++queries;
     }
   });
-  const Superellipsoid truth = mapSixPartialViews(est);
+  const Superellipsoid truth = mapPartialViews(est);
   done = true;
   reader.join();
   EXPECT_GT(queries.load(), 0);
@@ -422,12 +425,7 @@ TEST(SuperellipsoidEstimator, ViewsAndQueriesFromTwoThreads) {
 // the same fit would get from a cloud (no count) or from many views.
 TEST(SuperellipsoidEstimator, AFruitsIntervalWidensWhenFewViewsSawIt) {
   SuperellipsoidEstimator est;
-  std::mt19937 rng(2);
-  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  for (int v = 0; v < 8; ++v) {
-    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
-    est.insertView(view.data(v));
-    est.update();
+  mapPartialViews(est, 8, [&](int v) {
     const std::vector<FruitEstimate> fruits = est.fruits();
     ASSERT_EQ(fruits.size(), 1u) << "view " << v;
     const FruitEstimate& f = fruits[0];
@@ -451,7 +449,7 @@ TEST(SuperellipsoidEstimator, AFruitsIntervalWidensWhenFewViewsSawIt) {
       EXPECT_EQ(counted.lo, cloud.lo) << "view " << v;
       EXPECT_EQ(counted.hi, cloud.hi) << "view " << v;
     }
-  }
+  });
 }
 
 // The bytes saveMap writes (empty, with a test failure, if it fails).
@@ -576,7 +574,7 @@ TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAft
   ShapeEstimatorHost host;
   host.add(std::make_unique<SuperellipsoidEstimator>());
   auto& est = dynamic_cast<SuperellipsoidEstimator&>(host.estimator(0));
-  const Superellipsoid truth = mapSixPartialViews(est);
+  const Superellipsoid truth = mapPartialViews(est);
   const auto fruits = host.sharedFruits(0);
   const auto targets = host.sharedViewTargets();
   ASSERT_EQ(fruits->size(), 1u);
@@ -666,7 +664,7 @@ TEST(SuperellipsoidEstimator, LiveSettingsAndExportsWhileViewsAndFitsRun) {
       ++exports;
     }
   });
-  const Superellipsoid truth = mapSixPartialViews(est);
+  const Superellipsoid truth = mapPartialViews(est);
   done = true;
   reconfigure.join();
   service.join();
