@@ -23,7 +23,8 @@ const std::vector<std::string>& fruitReportColumns();
 
 // Writes the accepted fruits to `path`: JSON if it ends in ".json", CSV if in ".csv"; anything
 // else is refused. `sightings` is keyed by fruit id (a fruit without an entry: 0 views, no
-// stamps). False with a message naming the file and the reason.
+// stamps); a fruit whose own `views` were counted reports those, the count its volume interval
+// was made from. False with a message naming the file and the reason.
 bool writeFruitReport(const std::string& path, const std::vector<FruitEstimate>& fruits,
                       const std::map<int, FruitSightings>& sightings, std::string* error);
 

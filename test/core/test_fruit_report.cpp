@@ -81,6 +81,19 @@ TEST(FruitReport, CsvAndJsonHoldOneRowPerAcceptedFruitThatReadsBack) {
   EXPECT_NEAR(std::stod(cells[19]), 0.003, 1e-12);  // the 90 % centre radius
   // A fruit no view was matched to: 0 views, no stamps (empty cells).
   EXPECT_NE(row7.find(",0,,"), std::string::npos) << row7;
+  // A fruit whose own views were counted reports the count its interval was made from, even
+  // where the log (read at another moment) has counted one more since.
+  std::vector<FruitEstimate> counted = fruits;
+  counted[0].views = 3;
+  ASSERT_TRUE(writeFruitReport(csv, counted, seen, &error)) << error;
+  std::istringstream again(slurp(csv));
+  std::getline(again, header);
+  std::getline(again, row3);
+  std::vector<std::string> recounted;
+  std::istringstream r3b(row3);
+  for (std::string cell; std::getline(r3b, cell, ',');) recounted.push_back(cell);
+  ASSERT_EQ(recounted.size(), fruitReportColumns().size());
+  EXPECT_EQ(recounted[14], "3");
 
   const std::string json = (dir.path / "fruits.json").string();
   ASSERT_TRUE(writeFruitReport(json, fruits, seen, &error)) << error;

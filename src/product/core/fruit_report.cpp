@@ -58,7 +58,7 @@ bool writeFruitReport(const std::string& path, const std::vector<FruitEstimate>&
         std::to_string(f.id), number(s.t.x(), json), number(s.t.y(), json), number(s.t.z(), json),
         number(f.volume, json), number(s.a, json), number(s.b, json), number(s.c, json), number(s.e1, json),
         number(s.e2, json), number(s.rpy.x() * deg, json), number(s.rpy.y() * deg, json), number(s.rpy.z() * deg, json),
-        std::to_string(f.n_points), std::to_string(seen.views), number(seen.first_seen, json),
+        std::to_string(f.n_points), std::to_string(f.views > 0 ? f.views : seen.views), number(seen.first_seen, json),
         number(seen.last_seen, json), number(f.volume_lo, json), number(f.volume_hi, json),
         number(f.center_r90, json)};
     if (json) {
