@@ -18,7 +18,6 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <fruit_shape_completion/neighbour_grid.h>
-#include <fruit_shape_completion/shape_targets.h>
 
 #include "command_line.h"
 #include <nlohmann/json.hpp>
@@ -60,7 +59,7 @@ struct Outcome {
   // ... and how far the prior and the fit's centre lie toward the camera (along the mean of the
   // views' directions): a half-seen fit's volume error follows its centre's depth error.
   double prior_toward_mm = 0, fit_toward_mm = 0;
-  double fit_coverage = 0;  // the matched fit's own seen share (shape_targets.h seenCoverage)
+  double fit_coverage = 0;  // the matched fit's own seen share (FruitEstimate::seen_share)
   double ratio = 0;         // true volume / fitted volume
   double rms = 0;           // the matched fit's RMS radial residual [m]
   double min_axis = 0;      // the matched fit's shortest semi-axis [m]
@@ -308,7 +307,7 @@ Outcome run(const Case& c, const PipelineParams& params, std::mt19937& rng, cons
       look.normalize();
       o.prior_toward_mm = 1000.0 * (f.center_prior - truth_center).dot(look);
       o.fit_toward_mm = 1000.0 * (f.center() - truth_center).dot(look);
-      o.fit_coverage = seenCoverage(f, params.missing.samples);
+      o.fit_coverage = f.seen_share;
       o.ratio = c.volume / f.volume;
       o.rms = f.rms;
       const Superellipsoid fitted = f.fittedShape();  // as the pipeline tests the axis bound

@@ -1,7 +1,5 @@
 #include "fruit_text.h"
 
-#include <fruit_shape_completion/missing_surface.h>
-
 #include <cmath>
 #include <cstdio>
 

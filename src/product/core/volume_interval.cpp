@@ -20,10 +20,10 @@ namespace {
 // paper-profile episodes of scenarios 1 and 2 (real capsicum meshes; final fits of seeds 1-40,
 // with and without shape targets), the same scenarios' fits after 60 and 120 s (seeds 1-20 with
 // shape targets: fits a user reads before the run ends, seen in fewer views), and procedural:1
-// and :2 (seeds 1-20; another fruit shape), all under the upstream-emulating planner. Each group alone misleads on the others: how closely a
-// superellipsoid's volume matches a fully seen fruit depends on the fruit's shape family. Views
-// cut at a plane through the fruit (the suite's caps) are not pooled: their fits err small more
-// often than cameras'. The slopes' signs are held so that a larger spread or residual, or fewer
+// and :2 (seeds 1-20; another fruit shape), all under the upstream-emulating planner. Each group
+// alone misleads on the others: how closely a superellipsoid's volume matches a fully seen fruit
+// depends on the fruit's shape family. Views cut at a plane through the fruit (the suite's caps)
+// are not pooled: their fits err small more often than cameras'. The slopes' signs are held so that a larger spread or residual, or fewer
 // views, never narrow the interval and more of the fruit seen never widens it. The spread says
 // which fits the points pin down (a half-seen fruit whose depth they leave free); the residual
 // what the spread cannot: blurred depth and shapes that no superellipsoid matches exactly; the
