@@ -35,6 +35,19 @@ SphereFit fitSphere(const PointList& points);
 // normals.
 double normalLineHold(const PointList& points, const std::vector<Eigen::Vector3d>& normals);
 
+// A fruit seen from one side has its centre behind what was seen, but not behind the deepest
+// part of it, the outline where the view grazes the surface: that lies a little in front of a
+// convex fruit's centre (R^2 / d for a sphere seen from distance d) or, blurred by the depth
+// camera, a few millimetres behind it. Along the direction the normals face on average (into
+// the fruit, from the seen side), `center` is moved forward to at most the points' 99th
+// percentile depth plus `margin`. Where the normal lines meet far behind the outline (a blocky
+// fruit's steep sides seen from one side, whose normals tilt alike) the fit would follow the
+// prior into a fruit far too large. Where the fruit was seen all round, its deepest points lie
+// on its far side and nothing moves. A negative margin, or fewer than 10 normals, leaves
+// `center` as it is.
+Eigen::Vector3d limitToSeenDepth(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
+                                 const Eigen::Vector3d& center, double margin);
+
 // The prior the pipeline fits from: estimateFruitCenter, moved toward the centre of the sphere
 // through the points where the normal lines hold the centre little and the fruit is small. Over
 // a small cap of a small fruit the normals' neighbourhood (1.5 cm) spans much of the cap, the
@@ -42,12 +55,18 @@ double normalLineHold(const PointList& points, const std::vector<Eigen::Vector3d
 // (hence its volume) follows the prior; the sphere through the points is held by their
 // curvature instead. On a large fruit the normals are sound and the sphere through a small cap
 // of a shape that is no sphere misleads, so it is left out there. Without normals: the sphere
-// centre if it is valid and small enough, else the points' mean.
+// centre if it is valid and small enough, else the points' mean. Then limitToSeenDepth, where
+// the normal lines scatter about the point they meet at (RMS distance at least
+// rim_min_line_spread: lobes, a blocky fruit's steep sides, noise); lines that meet closely (a
+// sphere-like fruit) hold the centre even where the seen part ends in front of it, as where a
+// camera lost the grazing rim or leaves leave a gap.
 struct CenterPriorBlend {
   double sphere_below = 0.4;   // normalLineHold at or below this: the sphere's full weight
   double normals_above = 0.5;  // at or above this: the normal lines alone
   double sphere_radius_full = 0.035;  // the sphere's radius [m] up to which it keeps its weight
   double sphere_radius_none = 0.045;  // ... and from which it has none
+  double rim_margin = 0.003;  // limitToSeenDepth's margin [m]; negative: no limit
+  double rim_min_line_spread = 0.003;  // [m] the limit applies from this scatter of the lines on
 };
 Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
                                    double lambda, const CenterPriorBlend& blend = CenterPriorBlend());

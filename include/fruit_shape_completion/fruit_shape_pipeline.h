@@ -26,6 +26,9 @@ struct PipelineParams {
   ClusteringParams clustering;
   NormalParams normals;
   double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
+  // The centre prior lies at most this far [m] behind the deepest seen points, along the way
+  // the normals face (limitToSeenDepth); negative: no limit.
+  double center_rim_margin = 0.003;
   // A cluster that no superellipsoid fits is split in two up to this depth (touching fruits).
   int max_split_depth = 2;
   // A cluster whose split only cuts one fruit into overlapping parts is that fruit, fitted

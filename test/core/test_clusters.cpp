@@ -235,6 +235,70 @@ TEST(FruitCenter, AFlattenedFruitSeenAllRoundKeepsItsCentre) {
   }
 }
 
+TEST(FruitCenter, APriorBehindTheDeepestSeenPointsMovesForwardToThem) {
+  // A sphere seen from +x over a hemisphere (its outline through the centre): the normals face
+  // -x on average and the seen points reach back to the centre's depth, so a prior 15 mm
+  // deeper moves forward (+x) to the deepest points' 99th percentile plus the margin.
+  const Eigen::Vector3d c(0.3, -0.1, 0.7);
+  const double r = 0.04, margin = 0.003;
+  ScanParams p;
+  p.visible_fraction = 0.5;
+  p.voxel = 0.0;
+  p.noise_sigma = 0.0;
+  PointList pts = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(r, c)), p);
+  std::vector<Eigen::Vector3d> normals;
+  for (const auto& q : pts) normals.push_back((c - q).normalized());
+  pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);  // skipped
+  normals.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);
+  std::vector<double> seen_depth;  // how far each point lies behind the front, along -x
+  for (const auto& q : pts)
+    if (q.allFinite()) seen_depth.push_back(c.x() + r - q.x());
+  std::sort(seen_depth.begin(), seen_depth.end());
+  const double deepest = seen_depth[static_cast<std::size_t>(0.99 * (seen_depth.size() - 1))];
+  ASSERT_NEAR(deepest, r, 0.002);  // the outline: the centre's depth
+
+  const Eigen::Vector3d deep = c - Eigen::Vector3d(0.015, 0.0, 0.0);
+  const Eigen::Vector3d moved = limitToSeenDepth(pts, normals, deep, margin);
+  EXPECT_NEAR(c.x() + r - moved.x(), deepest + margin, 2e-4);  // at the limit, along the view
+  EXPECT_NEAR(moved.y(), deep.y(), 2e-4);
+  EXPECT_NEAR(moved.z(), deep.z(), 2e-4);
+  // In front of the limit, or with a negative margin: untouched.
+  EXPECT_EQ(limitToSeenDepth(pts, normals, c, margin), c);
+  EXPECT_EQ(limitToSeenDepth(pts, normals, deep, -1.0), deep);
+  // The same prior for a sphere seen all round: its deepest points lie on its far side.
+  p.visible_fraction = 1.0;
+  const PointList all = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(r, c)), p);
+  std::vector<Eigen::Vector3d> all_normals;
+  for (const auto& q : all) all_normals.push_back((c - q).normalized());
+  EXPECT_EQ(limitToSeenDepth(all, all_normals, deep, margin), deep);
+  // Fewer than ten normals say nothing about the side it was seen from.
+  EXPECT_EQ(limitToSeenDepth(PointList(pts.begin(), pts.begin() + 9),
+                             std::vector<Eigen::Vector3d>(normals.begin(), normals.begin() + 9), deep, margin),
+            deep);
+  // blendedFruitCenter holds its prior to the seen depth only where the normal lines scatter.
+  // Exact normals of a sphere seen over a quarter meet at its centre, 18 mm behind the deepest
+  // seen points, and keep the prior there; tilted by about 9 degrees each they scatter (as
+  // lobes and noise make them) and the prior is held to those points plus the margin.
+  p.visible_fraction = 0.25;
+  const PointList cap = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(r, c)), p);
+  std::vector<Eigen::Vector3d> exact, tilted;
+  std::mt19937 rng(11);
+  std::normal_distribution<double> tilt(0.0, 0.09);
+  double cap_deepest = 0.0;
+  for (const auto& q : cap) {
+    exact.push_back((c - q).normalized());
+    tilted.push_back((exact.back() + Eigen::Vector3d(tilt(rng), tilt(rng), tilt(rng))).normalized());
+    cap_deepest = std::max(cap_deepest, c.x() + r - q.x());
+  }
+  ASSERT_NEAR(cap_deepest, r / 2, 0.002);  // a quarter of a sphere's surface reaches half way
+  EXPECT_LT((blendedFruitCenter(cap, exact, 2.5) - c).norm(), 5e-4);
+  const Eigen::Vector3d held = blendedFruitCenter(cap, tilted, 2.5);
+  EXPECT_NEAR(c.x() + r - held.x(), cap_deepest + margin, 5e-4);
+  CenterPriorBlend no_limit;
+  no_limit.rim_margin = -1.0;
+  EXPECT_GT(c.x() + r - blendedFruitCenter(cap, tilted, 2.5, no_limit).x(), cap_deepest + margin + 0.01);
+}
+
 TEST(FruitCenter, PlanarAndCollinearClustersAreRejectedWithAReason) {
   PointList plane, line;
   for (int i = 0; i < 30; ++i)

@@ -369,6 +369,15 @@ bool writePly(const std::string& path, const PointList& points,
     if (error) *error = path + ": colour count differs from point count";
     return false;
   }
+  if (points.empty()) {  // PCL's writer refuses an empty cloud; a view that saw nothing is still a result
+    std::ofstream out(path);
+    out << "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    if (!out) {
+      if (error) *error = path + ": cannot write";
+      return false;
+    }
+    return true;
+  }
   pcl::PointCloud<pcl::PointXYZRGB> coloured;
   for (std::size_t i = 0; i < points.size(); ++i) {
     pcl::PointXYZRGB p;

@@ -1,5 +1,5 @@
 // fit_cloud: fits one superellipsoid per fruit to a fruit surface cloud file.
-//   fit_cloud --input FILE [--json] [--surface-out FILE.ply]
+//   fit_cloud --input FILE [--json] [--surface-out FILE.ply] [--center-rim-margin M]
 #include <fruit_shape_completion/instrument/cloud_io.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 
@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <iostream>
+#include <stdexcept>
 
 #include "fruit_text.h"
 
@@ -21,7 +22,17 @@ int main(int argc, char** argv) {
   app.add_flag("--json", json, "one JSON object on stdout (logs on stderr)");
   app.add_option("--surface-out", surface_out,
                  "PLY of the fitted surfaces: observed part green, predicted unseen part red (accepted fruits only)");
+  PipelineParams params;
+  app.add_option("--center-rim-margin", params.center_rim_margin,
+                 "the centre prior at most this far [m] behind the deepest seen points (negative: no limit)")
+      ->capture_default_str();
   if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
+  try {
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "fit_cloud: " << e.what() << "\n";
+    return 2;
+  }
 
   const auto start = std::chrono::steady_clock::now();
   const CloudFile cloud = readPointCloud(input);
@@ -29,7 +40,7 @@ int main(int argc, char** argv) {
     std::cerr << "fit_cloud: " << cloud.error << "\n";
     return 1;
   }
-  FruitShapePipeline pipeline;
+  FruitShapePipeline pipeline(params);
   const auto& fruits = pipeline.update(cloud.points);
   const auto& st = pipeline.lastStats();
   const double total_ms =

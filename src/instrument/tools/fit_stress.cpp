@@ -357,6 +357,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--center-lambda", params.center_lambda, "the centre prior's pull toward the cluster mean")
       ->capture_default_str();
+  app.add_option("--center-rim-margin", params.center_rim_margin,
+                 "the centre prior at most this far [m] behind the deepest seen points (negative: no limit)")
+      ->capture_default_str();
   std::string view_model = "camera";
   app.add_option("--views", view_model,
                  "camera: cameras 0.3-0.5 m away cut by a leaf's edge; cap: caps around the view directions (see the header)")

@@ -50,6 +50,19 @@ Eigen::Vector3d centerOf(const NormalLines& lines, const Eigen::Vector3d& mean, 
   return w.allFinite() ? w : mean;
 }
 
+// The RMS distance of the normal lines from w.
+double lineSpread(const PointList& points, const std::vector<Eigen::Vector3d>& normals, const Eigen::Vector3d& w) {
+  double sum = 0.0;
+  int n = 0;
+  for (std::size_t i = 0; i < points.size() && i < normals.size(); ++i) {
+    if (!points[i].allFinite() || !normals[i].allFinite()) continue;
+    const Eigen::Vector3d d = w - points[i];
+    sum += (d - d.dot(normals[i]) * normals[i]).squaredNorm();
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / n) : 0.0;
+}
+
 double holdOf(const NormalLines& lines) {
   if (lines.used == 0) return 0.0;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
@@ -96,6 +109,29 @@ double normalLineHold(const PointList& points, const std::vector<Eigen::Vector3d
   return holdOf(normalLines(points, normals));
 }
 
+Eigen::Vector3d limitToSeenDepth(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
+                                 const Eigen::Vector3d& center, double margin) {
+  if (!(margin >= 0.0) || !center.allFinite()) return center;
+  Eigen::Vector3d inward = Eigen::Vector3d::Zero();
+  int with_normal = 0;
+  for (std::size_t i = 0; i < points.size() && i < normals.size(); ++i)
+    if (points[i].allFinite() && normals[i].allFinite()) {
+      inward += normals[i];
+      ++with_normal;
+    }
+  if (with_normal < 10 || !(inward.norm() > 1e-9)) return center;
+  inward.normalize();
+  std::vector<double> depth;
+  depth.reserve(points.size());
+  for (const auto& p : points)
+    if (p.allFinite()) depth.push_back(p.dot(inward));
+  // The 99th percentile: a few strays behind the fruit do not move the outline.
+  const auto deepest = depth.begin() + static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(depth.size() - 1));
+  std::nth_element(depth.begin(), deepest, depth.end());
+  const double beyond = center.dot(inward) - (*deepest + margin);
+  return beyond > 0.0 ? Eigen::Vector3d(center - beyond * inward) : center;
+}
+
 Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Eigen::Vector3d>& normals,
                                    double lambda, const CenterPriorBlend& blend) {
   const NormalLines system = normalLines(points, normals);
@@ -104,12 +140,17 @@ Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Ei
     if (full == none) return value <= full ? 1.0 : 0.0;
     return std::clamp((none - value) / (none - full), 0.0, 1.0);
   };
-  double w = ramp(holdOf(system), blend.sphere_below, blend.normals_above);
-  if (w <= 0.0) return lines;
-  const SphereFit sphere = fitSphere(points);
-  if (!sphere.valid()) return lines;
-  w *= ramp(sphere.radius, blend.sphere_radius_full, blend.sphere_radius_none);
-  return w > 0.0 ? Eigen::Vector3d(w * sphere.center + (1.0 - w) * lines) : lines;
+  Eigen::Vector3d center = lines;
+  if (const double hold_weight = ramp(holdOf(system), blend.sphere_below, blend.normals_above); hold_weight > 0.0) {
+    const SphereFit sphere = fitSphere(points);
+    const double w = sphere.valid() ? hold_weight * ramp(sphere.radius, blend.sphere_radius_full, blend.sphere_radius_none) : 0.0;
+    if (w > 0.0) center = w * sphere.center + (1.0 - w) * lines;
+  }
+  // Lines that meet where they were aimed (a sphere-like fruit) put the prior where it belongs
+  // even when what was seen ends in front of the centre; lines that scatter (lobes, steep
+  // sides) leave it free to slide along the view.
+  if (lineSpread(points, normals, lines) < blend.rim_min_line_spread) return center;
+  return limitToSeenDepth(points, normals, center, blend.rim_margin);
 }
 
 ClusterShapeCheck checkClusterShape(const PointList& points,

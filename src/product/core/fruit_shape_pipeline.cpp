@@ -78,6 +78,7 @@ void PipelineParams::validate() const {
     throw std::invalid_argument("normal_max_edge_offset must be in [0, 1)");
   if (!(center_lambda >= 0.0) || !std::isfinite(center_lambda))
     throw std::invalid_argument("center lambda must be a finite value >= 0");
+  if (!std::isfinite(center_rim_margin)) throw std::invalid_argument("center_rim_margin must be finite");
   if (missing.samples < 0) throw std::invalid_argument("missing-surface samples must be >= 0");
   if (threads < 1 || threads > 64) throw std::invalid_argument("fit threads must be in [1, 64]");
   if (!(refit_tolerance >= 0.0) || !std::isfinite(refit_tolerance))
@@ -136,7 +137,9 @@ FruitEstimate FruitShapePipeline::estimateCluster(const PointList& points, const
     est.reason = check.reason;
     return est;
   }
-  est.center_prior = blendedFruitCenter(points, normals, params_.center_lambda);
+  CenterPriorBlend blend;
+  blend.rim_margin = params_.center_rim_margin;
+  est.center_prior = blendedFruitCenter(points, normals, params_.center_lambda, blend);
   stats->prior_seconds += secondsSince(prior_start);
   const bool warm = previous != nullptr && previous->estimate.accepted;
   const Superellipsoid start = warm ? previous->estimate.fittedShape() : Superellipsoid();

@@ -106,6 +106,7 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("normal_radius", p.pipeline.normals.radius);
   read("normal_max_edge_offset", p.pipeline.normals.max_edge_offset);
   read("center_lambda", p.pipeline.center_lambda);
+  read("center_rim_margin", p.pipeline.center_rim_margin);
   read("refit_tolerance", p.pipeline.refit_tolerance);
   read("fit_threads", p.pipeline.threads);
   read("alpha", p.pipeline.fit.alpha);
