@@ -27,8 +27,10 @@ struct PipelineParams {
   NormalParams normals;
   double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
   // The centre prior lies at most this far [m] behind the deepest seen points, along the way
-  // the normals face (limitToSeenDepth); negative: no limit.
-  double center_rim_margin = 0.003;
+  // the normals face, where the normal lines scatter (limitToSeenDepth); negative: no limit.
+  // Off: on fused camera views its fits measured no better (docs/benchmarks.md, "The centre
+  // prior held to the deepest seen points"); 0.003 for single views that reach the outline.
+  double center_rim_margin = -1.0;
   // A cluster that no superellipsoid fits is split in two up to this depth (touching fruits).
   int max_split_depth = 2;
   // A cluster whose split only cuts one fruit into overlapping parts is that fruit, fitted

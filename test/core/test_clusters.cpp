@@ -291,8 +291,10 @@ TEST(FruitCenter, APriorBehindTheDeepestSeenPointsMovesForwardToThem) {
     cap_deepest = std::max(cap_deepest, c.x() + r - q.x());
   }
   ASSERT_NEAR(cap_deepest, r / 2, 0.002);  // a quarter of a sphere's surface reaches half way
-  EXPECT_LT((blendedFruitCenter(cap, exact, 2.5) - c).norm(), 5e-4);
-  const Eigen::Vector3d held = blendedFruitCenter(cap, tilted, 2.5);
+  CenterPriorBlend limited;
+  limited.rim_margin = margin;
+  EXPECT_LT((blendedFruitCenter(cap, exact, 2.5, limited) - c).norm(), 5e-4);
+  const Eigen::Vector3d held = blendedFruitCenter(cap, tilted, 2.5, limited);
   EXPECT_NEAR(c.x() + r - held.x(), cap_deepest + margin, 5e-4);
   CenterPriorBlend no_limit;
   no_limit.rim_margin = -1.0;

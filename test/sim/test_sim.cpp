@@ -330,12 +330,13 @@ TEST(SharedScenes, ScenarioOneHasFourteenRedFruitsOfRealisticSize) {
               "left after the alpha cut\n", ts.precision, ts.recall, cut_hits, flat_hits);
 }
 
-TEST(SharedScenes, TheLowestRealPepperSeenFromBelowIsNotFittedFarTooLarge) {
+TEST(SharedScenes, TheLowestRealPepperSeenFromBelowFitsWithinAFifthWithTheRimLimit) {
   // The plant's lowest, largest fruit (251 cm^3, blocky) alone, seen slightly from below by one
   // camera with the paper's depth noise and blur, every depth pixel given to the pipeline as
   // fit_cloud gives a user's cloud. The normals along its steep sides meet far behind what the
   // camera saw, and a fit that follows that prior comes out 1.4-1.8x too large; the centre
-  // prior held to the deepest seen points (center_rim_margin) keeps it within 20 %.
+  // prior held to the deepest seen points (center_rim_margin 3 mm, off by default) keeps it
+  // within 20 %.
   const std::string mesh = sharedData() + "/plants/VG07_6_fruitonly.dae";
   if (!exists(mesh)) GTEST_SKIP() << "needs ../shared/data (set FSC_SHARED_DATA): " << mesh << " not found";
   char dir_template[] = "/tmp/fsc_pepper_XXXXXX";
@@ -369,7 +370,8 @@ TEST(SharedScenes, TheLowestRealPepperSeenFromBelowIsNotFittedFarTooLarge) {
       alone_fruit.push_back(lowest);
     }
   const RgbdRenderer renderer(alone, alone_fruit);
-  PipelineParams free_prior;
+  PipelineParams limited, free_prior;
+  limited.center_rim_margin = 0.003;
   free_prior.center_rim_margin = -1.0;
   // Azimuths around the fruit, 15 deg below it, 0.3-0.5 m away.
   double worst_limited = 1.0, worst_free = 1.0;
@@ -389,10 +391,10 @@ TEST(SharedScenes, TheLowestRealPepperSeenFromBelowIsNotFittedFarTooLarge) {
           best = std::max(best, 1.0 - std::abs(f.volume - truth.volume) / truth.volume);
       return best;
     };
-    const double limited = accuracy(PipelineParams()), free = accuracy(free_prior);
+    const double held = accuracy(limited), free = accuracy(free_prior);
     std::printf("[ report   ] lowest pepper from azimuth %.2f, %.1f m: volume accuracy %.3f (%.3f with the prior free)\n",
-                azimuth, distance, limited, free);
-    worst_limited = std::min(worst_limited, limited);
+                azimuth, distance, held, free);
+    worst_limited = std::min(worst_limited, held);
     worst_free = std::min(worst_free, free);
   }
   EXPECT_GT(worst_limited, 0.8);

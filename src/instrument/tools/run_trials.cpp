@@ -157,6 +157,9 @@ int main(int argc, char** argv) {
   bool save_surfaces = false;
   app.add_flag("--save-surfaces", save_surfaces,
                "also write each trial's final fruit surface cloud (surface_K.ply; fit_cloud reads it)");
+  app.add_option("--center-rim-margin", estimator.pipeline.center_rim_margin,
+                 "[m] the centre prior at most this far behind the deepest seen points (negative: no limit)")
+      ->capture_default_str();
   app.add_flag_callback("--no-shape-targets", [&] { estimator.shape_targets = false; },
                         "the estimator's shape_targets parameter off: it fits but hands the planner no targets");
   app.add_option("--target-settled-coverage", estimator.targets.settled_coverage,
