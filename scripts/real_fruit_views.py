@@ -6,7 +6,8 @@ usage: scripts/real_fruit_views.py [--set 0|1] [--bin-dir DIR] [--shared DIR] [-
 
 The stress suite's peppers are drawn; these are the seven fruit meshes of ../shared/data's plant
 (VG07_6_fruitonly.dae, the ground truth of both paper scenarios). Each fruit is put alone in a
-scene (scene_truth --write-scene, the mesh split into its connected parts) and rendered with the
+scene (the plant written as OBJ by scene_truth --write-scene, split here into its connected parts,
+vertices welded by position) and rendered with the
 paper profile (render_view: its depth noise and blur) from cameras 0.3-0.5 m away around it, at
 elevations from below to above; with nothing else in the scene every depth pixel is the fruit, so
 the cloud is the fruit as the camera saw it, without the red test's dark pixels. Each cloud goes
@@ -15,12 +16,14 @@ to fit_cloud --json as a user would give it; the accepted fit nearest the true c
 azimuths (168 views); set 1: -50, -25, 0, 25, 50 deg, six other azimuths (210 views).
 Prints mean / 5th / 10th percentile / worst volume accuracy (a view without a fit counts 0),
 the share of true volumes inside the 90 % interval, its median half-width, the mean and spread
-of log(true / fitted volume), the median centre error. Needs the built tools (scripts/build.sh).
+of log(true / fitted volume), the median centre error. Needs the built tools (scripts/build.sh). With --keep, renders already
+in the folder are reused: give a fresh folder after changing the meshes or the renderer.
 """
 import argparse
 import json
 import math
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -128,7 +131,11 @@ def main():
         f.write(SCENE.format(mesh=mesh))
     run([tool("scene_truth"), "--scene", os.path.join(work, "plant.yaml"), "--write-scene", os.path.join(work, "plant")])
     fruit_objs = split_obj(os.path.join(work, "plant/plant_0.obj"), work)
+    if len(fruit_objs) != 7:
+        sys.exit("real_fruit_views: the plant split into %d parts, expected its 7 fruits" % len(fruit_objs))
     mtl = os.path.join(work, "plant/scene.mtl")
+    if os.path.exists(mtl):
+        shutil.copy(mtl, work)
 
     elevations = (-40, -15, 15, 40) if args.set == 0 else (-50, -25, 0, 25, 50)
     rows, seed = [], 1000 + 1000 * args.set
@@ -137,8 +144,6 @@ def main():
         with open(scene, "w") as f:
             f.write(SCENE.format(mesh=os.path.basename(obj)).replace(
                 "fruit_truth: %s, " % os.path.basename(obj), ""))
-        if os.path.exists(mtl):
-            subprocess.run(["cp", mtl, work])
         truth = json.loads(run([tool("scene_truth"), "--scene", scene, "--json"]))["fruits"]
         if len(truth) != 1:
             sys.exit("real_fruit_views: %s holds %d fruits, expected one" % (obj, len(truth)))
@@ -197,6 +202,8 @@ def main():
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"set": args.set, "summary": summary, "views": rows}, f, indent=1)
+    if not args.keep:
+        shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":

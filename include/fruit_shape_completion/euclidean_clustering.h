@@ -14,8 +14,9 @@ struct ClusteringParams {
 };
 
 // Non-finite points are ignored. Clusters are sorted by size, largest first; each cluster's
-// indices are ascending.
+// indices are ascending. `oversized`, if given, gets the number of components above max_size
+// (left out: a dense cloud, or fruits and leaves grown into one).
 std::vector<std::vector<int>> euclideanClusters(const PointList& points,
-                                                const ClusteringParams& params);
+                                                const ClusteringParams& params, int* oversized = nullptr);
 
 }  // namespace fruit_shape_completion

@@ -59,6 +59,7 @@ struct PipelineStats {
   int input_points = 0;
   int non_finite_points = 0;  // skipped
   int clusters = 0;  // examined this update (around the changed blocks when only those were re-clustered)
+  int oversized_clusters = 0;  // formed this update with more than clustering.max_size points: not fitted
   bool local = false;  // only the clusters around the changed blocks were formed again
   int fitted = 0;  // fits run this update (others reused)
   int kept = 0;    // changed clusters whose previous fit still explained them (not refitted)

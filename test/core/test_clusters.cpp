@@ -1,5 +1,6 @@
 #include <fruit_shape_completion/euclidean_clustering.h>
 #include <fruit_shape_completion/fruit_center.h>
+#include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/statistical_outlier_filter.h>
 #include <fruit_shape_completion/surface_normals.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
@@ -93,11 +94,21 @@ TEST(EuclideanClustering, SizeLimitsAndNonFinitePoints) {
   cloud.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
   cloud.emplace_back(0, std::numeric_limits<double>::infinity(), 0);
   ClusteringParams params;
-  auto clusters = euclideanClusters(cloud, params);
+  int oversized = -1;
+  auto clusters = euclideanClusters(cloud, params, &oversized);
   ASSERT_EQ(clusters.size(), 1u);
   EXPECT_EQ(clusters[0].size(), fruit_points);
+  EXPECT_EQ(oversized, 0);  // the small blob is below min_size, not counted as too large
   params.max_size = static_cast<int>(fruit_points) - 1;
-  EXPECT_TRUE(euclideanClusters(cloud, params).empty());
+  EXPECT_TRUE(euclideanClusters(cloud, params, &oversized).empty());
+  EXPECT_EQ(oversized, 1);
+  // The pipeline counts it in its stats (and fits nothing).
+  PipelineParams pipeline_params;
+  pipeline_params.clustering = params;
+  FruitShapePipeline pipeline(pipeline_params);
+  EXPECT_TRUE(pipeline.update(cloud).empty());
+  EXPECT_EQ(pipeline.lastStats().oversized_clusters, 1);
+  EXPECT_EQ(pipeline.lastStats().clusters, 0);
   EXPECT_TRUE(euclideanClusters({}, ClusteringParams()).empty());
 }
 
@@ -265,19 +276,21 @@ TEST(FruitCenter, APriorBehindTheDeepestSeenPointsMovesForwardToThem) {
   // In front of the limit, or with a negative margin: untouched.
   EXPECT_EQ(limitToSeenDepth(pts, normals, c, margin), c);
   EXPECT_EQ(limitToSeenDepth(pts, normals, deep, -1.0), deep);
-  // The same prior for a sphere seen all round: its deepest points lie on its far side.
+  // A prior 35 mm off the centre of a sphere seen all round: its deepest points lie on its far
+  // side, whichever way the (nearly cancelling) normals face on average.
+  const Eigen::Vector3d deeper = c - Eigen::Vector3d(0.035, 0.0, 0.0);
   p.visible_fraction = 1.0;
   const PointList all = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(r, c)), p);
   std::vector<Eigen::Vector3d> all_normals;
   for (const auto& q : all) all_normals.push_back((c - q).normalized());
-  EXPECT_EQ(limitToSeenDepth(all, all_normals, deep, margin), deep);
+  EXPECT_EQ(limitToSeenDepth(all, all_normals, deeper, margin), deeper);
   // Fewer than ten normals say nothing about the side it was seen from.
   EXPECT_EQ(limitToSeenDepth(PointList(pts.begin(), pts.begin() + 9),
                              std::vector<Eigen::Vector3d>(normals.begin(), normals.begin() + 9), deep, margin),
             deep);
   // blendedFruitCenter holds its prior to the seen depth only where the normal lines scatter.
   // Exact normals of a sphere seen over a quarter meet at its centre, 18 mm behind the deepest
-  // seen points, and keep the prior there; tilted by about 9 degrees each they scatter (as
+  // seen points, and keep the prior there; tilted by about 7 degrees each they scatter (as
   // lobes and noise make them) and the prior is held to those points plus the margin.
   p.visible_fraction = 0.25;
   const PointList cap = scanFruit(SyntheticFruit::fromSuperellipsoid(sphere(r, c)), p);

@@ -68,6 +68,7 @@ struct EstimatorStatus {
   std::size_t blocks = 0, max_blocks = 0;
   double memory_mb = 0.0;
   std::size_t fruits = 0;  // accepted at the last update
+  std::size_t oversized_clusters = 0;  // at the last update: above cluster_max_size points, not fitted
   InputTotals input;  // including views still waiting for the map
 };
 

@@ -51,10 +51,14 @@ int main(int argc, char** argv) {
   std::cerr << ", " << st.clusters << " clusters, " << st.accepted << " accepted fits\n";
   if (st.input_points - st.non_finite_points == 0)
     std::cerr << "fit_cloud: warning: the cloud has no finite points, nothing to fit\n";
-  else if (st.clusters == 0)
+  else if (st.clusters == 0 && st.oversized_clusters == 0)
     std::cerr << "fit_cloud: warning: no cluster of " << pipeline.params().clustering.min_size
               << ".." << pipeline.params().clustering.max_size << " points within "
               << pipeline.params().clustering.tolerance << " m; nothing to fit\n";
+  if (st.oversized_clusters > 0)
+    std::cerr << "fit_cloud: warning: " << st.oversized_clusters << " cluster(s) of more than "
+              << pipeline.params().clustering.max_size
+              << " points not fitted (a cloud far denser than a 4 mm map: thin it, e.g. to one point per 2-4 mm)\n";
   for (const auto& f : fruits)
     if (!f.accepted) std::cerr << "fit_cloud: fruit " << f.id << " rejected: " << f.reason << "\n";
 

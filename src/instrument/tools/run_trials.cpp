@@ -3,7 +3,7 @@
 //   run_trials --scene FILE|procedural[:SEED] --trials N --duration S [--seed K]
 //              [--profile paper|ideal] [--red-test hsv|upstream] [--flat-colours] [--no-shape-targets] [--no-noise]
 //              [--input camera|roi|fruit-cloud] [--no-depth-edges] [--input-outliers K,STD,R] [--no-veil]
-//              [--velocity-scaling S] [--plan-overhead S] [--out DIR] [--json] [--jobs J]
+//              [--velocity-scaling S] [--plan-overhead S] [--center-rim-margin M] [--out DIR] [--json] [--jobs J]
 #include <fruit_shape_completion/host/superellipsoid_estimator.h>
 #include <fruit_shape_completion/instrument/cloud_io.h>
 #include <fruit_shape_completion/instrument/planner/viewpoint_planner.h>
@@ -213,6 +213,7 @@ int main(int argc, char** argv) {
   if (plan_overhead >= 0) base.view_cost = plan_overhead;
   try {
     estimator.input.validate();
+    estimator.pipeline.validate();
   } catch (const std::invalid_argument& e) {
     std::cerr << "run_trials: " << e.what() << "\n";
     return 2;
@@ -368,6 +369,7 @@ int main(int argc, char** argv) {
   nlohmann::json body = {
       {"scene", scene.name}, {"profile", profile}, {"red_test", red_test}, {"textures", base.textures},
       {"trials", trials}, {"duration_s", base.duration}, {"shape_targets", estimator.shape_targets},
+      {"center_rim_margin_m", estimator.pipeline.center_rim_margin},
       {"targets", {{"settled_coverage", estimator.targets.settled_coverage}, {"per_fruit", estimator.targets.per_fruit},
                    {"offset_m", estimator.targets.offset},
                    {"view_side", estimator.targets.view_side},

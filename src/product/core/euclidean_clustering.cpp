@@ -14,7 +14,8 @@ namespace fruit_shape_completion {
 // points took 17-54 s). A member lies within 0.22 tolerance of its representative, so a link
 // between two dense piles may be judged off by that much; the TSDF surface (4 mm spacing, 1 cm
 // tolerance) has one point per cube and is clustered exactly.
-std::vector<std::vector<int>> euclideanClusters(const PointList& points, const ClusteringParams& params) {
+std::vector<std::vector<int>> euclideanClusters(const PointList& points, const ClusteringParams& params,
+                                                int* oversized) {
   std::vector<std::vector<int>> clusters;
   if (points.empty() || !(params.tolerance > 0.0)) return clusters;
   std::vector<std::pair<std::uint64_t, int>> keyed;
@@ -52,6 +53,10 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
     }
     clusters[static_cast<std::size_t>(slot[r])].push_back(static_cast<int>(i));
   }
+  if (oversized)
+    *oversized = static_cast<int>(std::count_if(clusters.begin(), clusters.end(), [&](const std::vector<int>& c) {
+      return static_cast<int>(c.size()) > params.max_size;
+    }));
   clusters.erase(std::remove_if(clusters.begin(), clusters.end(),
                                 [&](const std::vector<int>& c) {
                                   const int size = static_cast<int>(c.size());

@@ -149,7 +149,7 @@ Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Ei
   // Lines that meet where they were aimed (a sphere-like fruit) put the prior where it belongs
   // even when what was seen ends in front of the centre; lines that scatter (lobes, steep
   // sides) leave it free to slide along the view.
-  if (lineSpread(points, normals, lines) < blend.rim_min_line_spread) return center;
+  if (!(blend.rim_margin >= 0.0) || lineSpread(points, normals, lines) < blend.rim_min_line_spread) return center;
   return limitToSeenDepth(points, normals, center, blend.rim_margin);
 }
 

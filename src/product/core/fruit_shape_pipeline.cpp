@@ -271,7 +271,8 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
       for (const auto& p : *cloud)
         if (p.allFinite()) filtered.push_back(p);
     }
-    clusters = euclideanClusters(stats_.non_finite_points > 0 ? filtered : *cloud, params_.clustering);
+    clusters = euclideanClusters(stats_.non_finite_points > 0 ? filtered : *cloud, params_.clustering,
+                                 &stats_.oversized_clusters);
   }
   // What the clusters index.
   const PointList& finite = local ? gathered : stats_.non_finite_points > 0 ? filtered : *cloud;

@@ -102,9 +102,11 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
   }
   stats_.non_finite_points += skipped;
   std::vector<std::vector<int>> clusters;
-  for (auto& c : found)
+  for (auto& c : found) {
+    stats_.oversized_clusters += static_cast<int>(c.size()) > params_.clustering.max_size;
     if (static_cast<int>(c.size()) >= params_.clustering.min_size && static_cast<int>(c.size()) <= params_.clustering.max_size)
       clusters.push_back(std::move(c));
+  }
   std::stable_sort(clusters.begin(), clusters.end(), [](const auto& l, const auto& r) { return l.size() > r.size(); });
   std::vector<Track> kept;
   for (std::size_t k = 0; k < tracks_.size(); ++k)

@@ -133,6 +133,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     check();
     estimator_->update();
     logIntegration();
+    if (const std::size_t oversized = estimator_->status().oversized_clusters; oversized > 0)
+      ROS_WARN_THROTTLE(10.0, "%s: %zu surface clusters hold more than cluster_max_size points and were not fitted "
+                        "(fruits and leaves grown into one, or a cloud far denser than the map)", name_.c_str(), oversized);
     // Read and publish in one step with reset(): a fit that a reset overtook publishes the
     // cleared state, never its own.
     std::lock_guard<std::mutex> lock(publish_mutex_);
@@ -173,6 +176,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"rays outside the map", std::to_string(s.rays_outside)},
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
+            {"surface clusters too large to fit (last update; cluster_max_size)", std::to_string(s.oversized_clusters)},
             {"fruit volumes: median 90 % interval half-width [%]", trust.first},
             {"fruit centres: median 90 % radius [mm]", trust.second},
             {"camera frames received", std::to_string(frames_received_)},
