@@ -6,10 +6,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <sstream>
 #include <string>
 
 using namespace fruit_shape_completion;
@@ -275,6 +277,38 @@ TEST(FitCloudTool, JsonOutputMatchesTheFruitInTheFile) {
   for (const auto& p : s.points) EXPECT_LT(truth.radialDistance(p), 0.004);
   std::remove(input.c_str());
   std::remove(surface.c_str());
+}
+
+TEST(FitCloudTool, ADenseRawViewIsTooLargeAClusterUnlessThinned) {
+  // A camera's raw view of an 8 cm fruit 0.3 m away: about 0.7 mm between points, more than a
+  // cluster may hold (cluster_max_size 10 000). fit_cloud says so and fits nothing; thinned to
+  // 3 mm (--voxel) it fits the fruit. A NaN point is counted either way.
+  const Superellipsoid truth = Superellipsoid::sphere(0.04, Eigen::Vector3d(0.0, 0.0, 0.3));
+  std::ostringstream text;
+  int n = 0;
+  for (double x = -0.04; x <= 0.04; x += 0.0006)
+    for (double y = -0.04; y <= 0.04; y += 0.0006)
+      if (x * x + y * y < 0.04 * 0.04) {
+        text << x << ' ' << y << ' ' << 0.3 - std::sqrt(0.04 * 0.04 - x * x - y * y) << '\n';
+        ++n;
+      }
+  text << "nan 0 0\n";
+  ASSERT_GT(n, 10000);
+  const std::string input = tempPath("dense_view.txt");
+  writeFile(input, text.str());
+  CommandResult r = run(fitCloudExe() + " --input " + input + " --json 2>&1 >/dev/null");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.out.find("1 cluster(s) of more than 10000 points not fitted"), std::string::npos) << r.out;
+  r = run(fitCloudExe() + " --input " + input + " --json 2>/dev/null");
+  EXPECT_EQ(nlohmann::json::parse(r.out).at("fruits").size(), 0u) << r.out;
+  r = run(fitCloudExe() + " --input " + input + " --json --voxel 0.003 2>/dev/null");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json out = nlohmann::json::parse(r.out);
+  ASSERT_EQ(out.at("fruits").size(), 1u) << r.out;
+  EXPECT_TRUE(out["fruits"][0].at("accepted").get<bool>()) << r.out;
+  EXPECT_NEAR(out["fruits"][0].at("volume_m3").get<double>(), truth.volume(), 0.25 * truth.volume()) << r.out;
+  EXPECT_EQ(out.at("non_finite_points").get<int>(), 1) << r.out;
+  std::remove(input.c_str());
 }
 
 TEST(FitCloudTool, BadFilesAndArgumentsFailWithAMessage) {

@@ -20,6 +20,11 @@ struct CloudFile {
 // The format is chosen by extension: .pcd, .ply, anything else is text.
 CloudFile readPointCloud(const std::string& path);
 
+// One point per occupied cube of side `leaf` [m] (the centroid of its points; PCL's voxel
+// grid): a raw camera cloud thinned toward the spacing the map's surface has. Non-finite
+// points are dropped; leaf <= 0 returns the finite points as they are.
+PointList thinCloud(const PointList& points, double leaf);
+
 // ASCII PLY; `colors` empty or one RGB per point.
 bool writePly(const std::string& path, const PointList& points,
               const std::vector<std::array<std::uint8_t, 3>>& colors, std::string* error);

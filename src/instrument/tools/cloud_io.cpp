@@ -6,6 +6,7 @@
 #include <pcl/io/pcd_io.h>
 #include <pcl/common/io.h>
 #include <pcl/io/ply_io.h>
+#include <pcl/filters/voxel_grid.h>
 
 #include <algorithm>
 #include <cctype>
@@ -361,6 +362,25 @@ CloudFile readPointCloud(const std::string& path) {
   } catch (const std::exception& e) {
     return fail(path, std::string("unreadable: ") + e.what());
   }
+}
+
+PointList thinCloud(const PointList& points, double leaf) {
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  PointList out;
+  for (const auto& p : points)
+    if (p.allFinite()) {
+      if (!(leaf > 0.0)) out.push_back(p);
+      cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+    }
+  if (!(leaf > 0.0) || cloud->empty()) return out;
+  pcl::PointCloud<pcl::PointXYZ> thinned;
+  pcl::VoxelGrid<pcl::PointXYZ> grid;
+  grid.setInputCloud(cloud);
+  const float l = static_cast<float>(leaf);
+  grid.setLeafSize(l, l, l);
+  grid.filter(thinned);
+  for (const auto& q : thinned) out.emplace_back(q.x, q.y, q.z);
+  return out;
 }
 
 bool writePly(const std::string& path, const PointList& points,

@@ -1,10 +1,11 @@
 // fit_cloud: fits one superellipsoid per fruit to a fruit surface cloud file.
-//   fit_cloud --input FILE [--json] [--surface-out FILE.ply] [--center-rim-margin M]
+//   fit_cloud --input FILE [--json] [--surface-out FILE.ply] [--voxel LEAF] [--center-rim-margin M]
 #include <fruit_shape_completion/instrument/cloud_io.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 
 #include "command_line.h"
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 #include <stdexcept>
@@ -22,6 +23,10 @@ int main(int argc, char** argv) {
   app.add_flag("--json", json, "one JSON object on stdout (logs on stderr)");
   app.add_option("--surface-out", surface_out,
                  "PLY of the fitted surfaces: observed part green, predicted unseen part red (accepted fruits only)");
+  double voxel = 0.0;
+  app.add_option("--voxel", voxel, "[m] thin the cloud to one point per cube of this side first (0: as given)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   PipelineParams params;
   app.add_option("--center-rim-margin", params.center_rim_margin,
                  "the centre prior at most this far [m] behind the deepest seen points (negative: no limit)")
@@ -40,16 +45,23 @@ int main(int argc, char** argv) {
     std::cerr << "fit_cloud: " << cloud.error << "\n";
     return 1;
   }
+  // Thinning drops the non-finite points before the pipeline could count them: counted here.
+  const int non_finite_before = voxel > 0.0 ? static_cast<int>(std::count_if(cloud.points.begin(), cloud.points.end(),
+                                                                               [](const auto& p) { return !p.allFinite(); }))
+                                            : 0;
+  const PointList thinned = voxel > 0.0 ? thinCloud(cloud.points, voxel) : PointList();
   FruitShapePipeline pipeline(params);
-  const auto& fruits = pipeline.update(cloud.points);
+  const auto& fruits = pipeline.update(voxel > 0.0 ? thinned : cloud.points);
   const auto& st = pipeline.lastStats();
+  const int non_finite = st.non_finite_points + non_finite_before;
   const double total_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 
-  std::cerr << "fit_cloud: " << st.input_points << " points";
-  if (st.non_finite_points > 0) std::cerr << " (" << st.non_finite_points << " NaN/Inf skipped)";
+  std::cerr << "fit_cloud: " << cloud.points.size() << " points";
+  if (non_finite > 0) std::cerr << " (" << non_finite << " NaN/Inf skipped)";
+  if (voxel > 0.0) std::cerr << ", thinned to " << thinned.size() << " at " << 1000.0 * voxel << " mm";
   std::cerr << ", " << st.clusters << " clusters, " << st.accepted << " accepted fits\n";
-  if (st.input_points - st.non_finite_points == 0)
+  if (static_cast<int>(cloud.points.size()) - non_finite == 0)
     std::cerr << "fit_cloud: warning: the cloud has no finite points, nothing to fit\n";
   else if (st.clusters == 0 && st.oversized_clusters == 0)
     std::cerr << "fit_cloud: warning: no cluster of " << pipeline.params().clustering.min_size
@@ -58,7 +70,7 @@ int main(int argc, char** argv) {
   if (st.oversized_clusters > 0)
     std::cerr << "fit_cloud: warning: " << st.oversized_clusters << " cluster(s) of more than "
               << pipeline.params().clustering.max_size
-              << " points not fitted (a cloud far denser than a 4 mm map: thin it, e.g. to one point per 2-4 mm)\n";
+              << " points not fitted (a cloud far denser than a 4 mm map: thin it, e.g. --voxel 0.003)\n";
   for (const auto& f : fruits)
     if (!f.accepted) std::cerr << "fit_cloud: fruit " << f.id << " rejected: " << f.reason << "\n";
 
@@ -85,7 +97,7 @@ int main(int argc, char** argv) {
   }
 
   if (json) {
-    nlohmann::json out = {{"fruits", nlohmann::json::array()}, {"non_finite_points", st.non_finite_points},
+    nlohmann::json out = {{"fruits", nlohmann::json::array()}, {"non_finite_points", non_finite},
                           {"total_ms", total_ms}};
     for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
     std::cout << out.dump() << "\n";
