@@ -365,14 +365,17 @@ CloudFile readPointCloud(const std::string& path) {
 }
 
 PointList thinCloud(const PointList& points, double leaf) {
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
   PointList out;
+  if (!(leaf > 0.0)) {
+    for (const auto& p : points)
+      if (p.allFinite()) out.push_back(p);
+    return out;
+  }
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
   for (const auto& p : points)
-    if (p.allFinite()) {
-      if (!(leaf > 0.0)) out.push_back(p);
+    if (p.allFinite())
       cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-    }
-  if (!(leaf > 0.0) || cloud->empty()) return out;
+  if (cloud->empty()) return out;
   pcl::PointCloud<pcl::PointXYZ> thinned;
   pcl::VoxelGrid<pcl::PointXYZ> grid;
   grid.setInputCloud(cloud);
