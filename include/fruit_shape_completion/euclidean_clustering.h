@@ -13,10 +13,16 @@ struct ClusteringParams {
   int max_size = 10000;
 };
 
+// The connected components left out for their size.
+struct ClustersLeftOut {
+  int oversized = 0;          // above max_size: a dense cloud, or fruits and leaves grown into one
+  int undersized = 0;         // below min_size: specks, or a fruit seen through a small gap
+  int undersized_points = 0;  // their points
+};
+
 // Non-finite points are ignored. Clusters are sorted by size, largest first; each cluster's
-// indices are ascending. `oversized`, if given, gets the number of components above max_size
-// (left out: a dense cloud, or fruits and leaves grown into one).
-std::vector<std::vector<int>> euclideanClusters(const PointList& points,
-                                                const ClusteringParams& params, int* oversized = nullptr);
+// indices are ascending. `left_out`, if given, gets the components dropped for their size.
+std::vector<std::vector<int>> euclideanClusters(const PointList& points, const ClusteringParams& params,
+                                                ClustersLeftOut* left_out = nullptr);
 
 }  // namespace fruit_shape_completion

@@ -28,9 +28,8 @@ struct PipelineParams {
   double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
   // The centre prior lies at most this far [m] behind the deepest seen points, along the way
   // the normals face, where the normal lines scatter (limitToSeenDepth); negative: no limit.
-  // Off: on fused camera views its fits measured no better (docs/benchmarks.md, "The centre
-  // prior held to the deepest seen points"); 0.003 for single views that reach the outline.
-  double center_rim_margin = -1.0;
+  // Blocky and lobed fruits seen from one side have lines that meet far behind them.
+  double center_rim_margin = 0.003;
   // A cluster that no superellipsoid fits is split in two up to this depth (touching fruits).
   int max_split_depth = 2;
   // A cluster whose split only cuts one fruit into overlapping parts is that fruit, fitted
@@ -60,6 +59,8 @@ struct PipelineStats {
   int non_finite_points = 0;  // skipped
   int clusters = 0;  // examined this update (around the changed blocks when only those were re-clustered)
   int oversized_clusters = 0;  // formed this update with more than clustering.max_size points: not fitted
+  int undersized_clusters = 0;  // formed this update with fewer than clustering.min_size points: not fitted
+  int undersized_points = 0;    // their points
   bool local = false;  // only the clusters around the changed blocks were formed again
   int fitted = 0;  // fits run this update (others reused)
   int kept = 0;    // changed clusters whose previous fit still explained them (not refitted)

@@ -94,20 +94,26 @@ TEST(EuclideanClustering, SizeLimitsAndNonFinitePoints) {
   cloud.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
   cloud.emplace_back(0, std::numeric_limits<double>::infinity(), 0);
   ClusteringParams params;
-  int oversized = -1;
-  auto clusters = euclideanClusters(cloud, params, &oversized);
+  ClustersLeftOut left_out;
+  left_out.oversized = -1;
+  auto clusters = euclideanClusters(cloud, params, &left_out);
   ASSERT_EQ(clusters.size(), 1u);
   EXPECT_EQ(clusters[0].size(), fruit_points);
-  EXPECT_EQ(oversized, 0);  // the small blob is below min_size, not counted as too large
+  EXPECT_EQ(left_out.oversized, 0);  // the small blob is below min_size, not counted as too large
+  EXPECT_EQ(left_out.undersized, 1);
+  EXPECT_EQ(left_out.undersized_points, 20);
   params.max_size = static_cast<int>(fruit_points) - 1;
-  EXPECT_TRUE(euclideanClusters(cloud, params, &oversized).empty());
-  EXPECT_EQ(oversized, 1);
-  // The pipeline counts it in its stats (and fits nothing).
+  EXPECT_TRUE(euclideanClusters(cloud, params, &left_out).empty());
+  EXPECT_EQ(left_out.oversized, 1);
+  EXPECT_EQ(left_out.undersized, 1);
+  // The pipeline counts both in its stats (and fits nothing).
   PipelineParams pipeline_params;
   pipeline_params.clustering = params;
   FruitShapePipeline pipeline(pipeline_params);
   EXPECT_TRUE(pipeline.update(cloud).empty());
   EXPECT_EQ(pipeline.lastStats().oversized_clusters, 1);
+  EXPECT_EQ(pipeline.lastStats().undersized_clusters, 1);
+  EXPECT_EQ(pipeline.lastStats().undersized_points, 20);
   EXPECT_EQ(pipeline.lastStats().clusters, 0);
   EXPECT_TRUE(euclideanClusters({}, ClusteringParams()).empty());
 }

@@ -657,7 +657,8 @@ TEST(TsdfMap, TheUpdateLogNamesTheBlocksUpdatedSinceEachReadersMark) {
 
 // A row scanned view by view: the pipeline that re-clusters only around the blocks each view
 // changed finds what the one that clusters the whole surface every time finds (the same fruits,
-// the same volumes), while it forms far fewer clusters late in the row.
+// the same volumes), while it forms far fewer clusters late in the row. Both count a speck too
+// small to fit.
 TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
   AnalyticScene scene;
   std::mt19937 rng(11);
@@ -670,11 +671,12 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
     truth.push_back(s);
     scene.shapes.push_back(s);
   }
+  scene.shapes.push_back(sphere(0.008, Eigen::Vector3d(0.66, 0.0, 0.3)));  // below cluster_min_size
   TsdfMap map;
   const TsdfIntegrator integ;
   IncrementalSurfaceExtractor extractor;
   FruitShapePipeline local, whole;
-  int local_clusters_late = 0, whole_clusters_late = 0, views = 0, local_updates = 0;
+  int local_clusters_late = 0, whole_clusters_late = 0, views = 0, local_updates = 0, local_specks = 0;
   for (double x = -0.1; x <= 0.12 * 14; x += 0.05, ++views) {
     for (const double side : {-1.0, 1.0}) {
       const PinholeCamera cam = PinholeCamera::lookingAt(Eigen::Vector3d(x, side * 0.35, 0.55),
@@ -684,6 +686,7 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
       const auto& a = local.update(extractor.lastBlocks());
       const auto& b = whole.update(surface);
       local_updates += local.lastStats().local;
+      local_specks += local.lastStats().undersized_clusters;
       if (x > 1.0) {
         local_clusters_late += local.lastStats().clusters;
         whole_clusters_late += whole.lastStats().clusters;
@@ -702,6 +705,10 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
     }
   }
   EXPECT_GT(local_updates, 2 * views - 2);  // all but the first
+  EXPECT_GE(whole.lastStats().undersized_clusters, 1);
+  EXPECT_GT(whole.lastStats().undersized_points, 0);
+  EXPECT_LT(whole.lastStats().undersized_points, 100 * whole.lastStats().undersized_clusters);
+  EXPECT_GE(local_specks, 1);  // counted where the views that saw it changed the surface
   int found = 0;
   for (const auto& f : whole.fruits()) found += f.accepted;
   EXPECT_GE(found, 12);

@@ -69,6 +69,7 @@ struct EstimatorStatus {
   double memory_mb = 0.0;
   std::size_t fruits = 0;  // accepted at the last update
   std::size_t oversized_clusters = 0;  // at the last update: above cluster_max_size points, not fitted
+  std::size_t undersized_points = 0;   // at the last update: in clusters below cluster_min_size, not fitted
   InputTotals input;  // including views still waiting for the map
 };
 

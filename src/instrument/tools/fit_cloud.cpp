@@ -67,6 +67,9 @@ int main(int argc, char** argv) {
     std::cerr << "fit_cloud: warning: no cluster of " << pipeline.params().clustering.min_size
               << ".." << pipeline.params().clustering.max_size << " points within "
               << pipeline.params().clustering.tolerance << " m; nothing to fit\n";
+  if (st.undersized_clusters > 0)
+    std::cerr << "fit_cloud: warning: " << st.undersized_points << " point(s) in " << st.undersized_clusters
+              << " cluster(s) of fewer than " << pipeline.params().clustering.min_size << " points not fitted\n";
   if (st.oversized_clusters > 0)
     std::cerr << "fit_cloud: warning: " << st.oversized_clusters << " cluster(s) of more than "
               << pipeline.params().clustering.max_size

@@ -15,7 +15,7 @@ namespace fruit_shape_completion {
 // between two dense piles may be judged off by that much; the TSDF surface (4 mm spacing, 1 cm
 // tolerance) has one point per cube and is clustered exactly.
 std::vector<std::vector<int>> euclideanClusters(const PointList& points, const ClusteringParams& params,
-                                                int* oversized) {
+                                                ClustersLeftOut* left_out) {
   std::vector<std::vector<int>> clusters;
   if (points.empty() || !(params.tolerance > 0.0)) return clusters;
   std::vector<std::pair<std::uint64_t, int>> keyed;
@@ -53,10 +53,15 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
     }
     clusters[static_cast<std::size_t>(slot[r])].push_back(static_cast<int>(i));
   }
-  if (oversized)
-    *oversized = static_cast<int>(std::count_if(clusters.begin(), clusters.end(), [&](const std::vector<int>& c) {
-      return static_cast<int>(c.size()) > params.max_size;
-    }));
+  if (left_out) {
+    *left_out = ClustersLeftOut();
+    for (const auto& c : clusters) {
+      const int size = static_cast<int>(c.size());
+      left_out->oversized += size > params.max_size;
+      left_out->undersized += size < params.min_size;
+      left_out->undersized_points += size < params.min_size ? size : 0;
+    }
+  }
   clusters.erase(std::remove_if(clusters.begin(), clusters.end(),
                                 [&](const std::vector<int>& c) {
                                   const int size = static_cast<int>(c.size());

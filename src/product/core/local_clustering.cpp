@@ -103,7 +103,10 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
   stats_.non_finite_points += skipped;
   std::vector<std::vector<int>> clusters;
   for (auto& c : found) {
-    stats_.oversized_clusters += static_cast<int>(c.size()) > params_.clustering.max_size;
+    const int size = static_cast<int>(c.size());
+    stats_.oversized_clusters += size > params_.clustering.max_size;
+    stats_.undersized_clusters += size < params_.clustering.min_size;
+    stats_.undersized_points += size < params_.clustering.min_size ? size : 0;
     if (static_cast<int>(c.size()) >= params_.clustering.min_size && static_cast<int>(c.size()) <= params_.clustering.max_size)
       clusters.push_back(std::move(c));
   }

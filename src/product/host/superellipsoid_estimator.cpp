@@ -190,6 +190,7 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
   std::lock_guard<std::mutex> results_lock(results_mutex_);
   s.fruits = accepted_->size();
   s.oversized_clusters = static_cast<std::size_t>(stats_.oversized_clusters);
+  s.undersized_points = static_cast<std::size_t>(stats_.undersized_points);
   return s;
 }
 

@@ -177,6 +177,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
             {"surface clusters too large to fit (last update; cluster_max_size)", std::to_string(s.oversized_clusters)},
+            {"surface points in clusters too small to fit (last update; cluster_min_size)",
+             std::to_string(s.undersized_points)},
             {"fruit volumes: median 90 % interval half-width [%]", trust.first},
             {"fruit centres: median 90 % radius [mm]", trust.second},
             {"camera frames received", std::to_string(frames_received_)},
