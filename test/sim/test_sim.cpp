@@ -336,7 +336,7 @@ TEST(SharedScenes, TheLowestRealPepperSeenFromBelowFitsWithinAFifthWithTheRimLim
   // camera with the paper's depth noise and blur, every depth pixel given to the pipeline as
   // fit_cloud gives a user's cloud. The normals along its steep sides meet far behind what the
   // camera saw, and a fit that follows that prior comes out 1.4-1.8x too large; the centre
-  // prior held to the deepest seen points (center_rim_margin 3 mm, off by default) keeps it
+  // prior held to the deepest seen points (center_rim_margin, 3 mm by default) keeps it
   // within 20 %.
   const std::string given = sharedData() + "/plants/VG07_6_fruitonly.dae";
   if (!exists(given)) GTEST_SKIP() << "needs ../shared/data (set FSC_SHARED_DATA): " << given << " not found";
