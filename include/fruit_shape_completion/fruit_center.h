@@ -65,7 +65,9 @@ struct CenterPriorBlend {
   double normals_above = 0.5;  // at or above this: the normal lines alone
   double sphere_radius_full = 0.035;  // the sphere's radius [m] up to which it keeps its weight
   double sphere_radius_none = 0.045;  // ... and from which it has none
-  double rim_margin = -1.0;  // limitToSeenDepth's margin [m]; negative: no limit (PipelineParams::center_rim_margin sets it)
+  // limitToSeenDepth's margin [m]; negative: no limit. Off here: the pipeline passes its
+  // PipelineParams::center_rim_margin (3 mm by default); a direct caller chooses.
+  double rim_margin = -1.0;
   double rim_min_line_spread = 0.003;  // [m] the limit applies from this scatter of the lines on
 };
 Eigen::Vector3d blendedFruitCenter(const PointList& points, const std::vector<Eigen::Vector3d>& normals,

@@ -28,7 +28,8 @@ struct PipelineParams {
   double center_lambda = 2.5;  // pull of the centre prior toward the cluster mean
   // The centre prior lies at most this far [m] behind the deepest seen points, along the way
   // the normals face, where the normal lines scatter (limitToSeenDepth); negative: no limit.
-  // Blocky and lobed fruits seen from one side have lines that meet far behind them.
+  // Blocky and lobed fruits seen from one side have lines that meet far behind them; a patch
+  // seen through a gap in the leaves (its rim a cut in front of the centre) is fitted smaller.
   double center_rim_margin = 0.003;
   // A cluster that no superellipsoid fits is split in two up to this depth (touching fruits).
   int max_split_depth = 2;

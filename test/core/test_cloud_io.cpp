@@ -247,6 +247,7 @@ TEST(FitCloudTool, JsonOutputMatchesTheFruitInTheFile) {
   scan.visible_fraction = 0.7;
   PointList pts = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
   pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+  for (int i = 0; i < 3; ++i) pts.emplace_back(1.0, 1.0, 1.0 + 0.004 * i);  // a speck: not a fruit, counted
   const std::string input = tempPath("fruit.txt");
   {
     std::ofstream out(input);
@@ -265,6 +266,9 @@ TEST(FitCloudTool, JsonOutputMatchesTheFruitInTheFile) {
   EXPECT_EQ(out.at("non_finite_points").get<int>(), 1) << r.out;
   EXPECT_TRUE(fruit.at("converged").get<bool>()) << r.out;
   EXPECT_TRUE(fruit.at("rejected_reason").is_null()) << r.out;
+  const CommandResult log = run(fitCloudExe() + " --input " + input + " --json 2>&1 >/dev/null");
+  EXPECT_NE(log.out.find("3 point(s) in 1 cluster(s) of fewer than 100 points not fitted"), std::string::npos)
+      << log.out;
   // Its 90 % volume interval holds the true volume, its 90 % centre radius the true centre.
   EXPECT_LE(fruit.at("volume_ci90_m3").at(0).get<double>(), truth.volume()) << r.out;
   EXPECT_GE(fruit.at("volume_ci90_m3").at(1).get<double>(), truth.volume()) << r.out;

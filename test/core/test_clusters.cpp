@@ -94,8 +94,7 @@ TEST(EuclideanClustering, SizeLimitsAndNonFinitePoints) {
   cloud.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0, 0);
   cloud.emplace_back(0, std::numeric_limits<double>::infinity(), 0);
   ClusteringParams params;
-  ClustersLeftOut left_out;
-  left_out.oversized = -1;
+  ClustersLeftOut left_out{-1, -1, -1};  // every count is set anew
   auto clusters = euclideanClusters(cloud, params, &left_out);
   ASSERT_EQ(clusters.size(), 1u);
   EXPECT_EQ(clusters[0].size(), fruit_points);
@@ -106,6 +105,10 @@ TEST(EuclideanClustering, SizeLimitsAndNonFinitePoints) {
   EXPECT_TRUE(euclideanClusters(cloud, params, &left_out).empty());
   EXPECT_EQ(left_out.oversized, 1);
   EXPECT_EQ(left_out.undersized, 1);
+  EXPECT_EQ(left_out.undersized_points, 20);
+  // Nothing to cluster: nothing left out, whatever the struct held.
+  EXPECT_TRUE(euclideanClusters({}, params, &left_out).empty());
+  EXPECT_EQ(left_out.oversized + left_out.undersized + left_out.undersized_points, 0);
   // The pipeline counts both in its stats (and fits nothing).
   PipelineParams pipeline_params;
   pipeline_params.clustering = params;

@@ -136,7 +136,8 @@ TEST(SuperellipsoidFit, LobedPepperShapesReported) {
 
 TEST(SuperellipsoidFit, SmallCapsFitFromTheSphereThroughTheirPoints) {
   // Over a fifth to a third of a noisy fruit the normal lines meet at a depth the rim normals'
-  // tilt sets, and the fit follows its prior; the pipeline's blended prior takes the sphere
+  // tilt sets, and the fit follows its prior; the blended prior (the pipeline's, without its rim
+  // limit) takes the sphere
   // through the points there. Fits of 60 such fruits (superellipsoids and lobed peppers 4-12 cm
   // across, 0.5-3 mm noise, as the stress suite) from either prior: the blend lifts the tail,
   // most of all on small fruits, whose 1.5 cm normal neighbourhoods span much of the cap. The
@@ -169,13 +170,19 @@ TEST(SuperellipsoidFit, SmallCapsFitFromTheSphereThroughTheirPoints) {
     // smaller shapes").
     FitParams no_size_prior;
     no_size_prior.size_prior = 0.0;
+    // Nor for the limit on the prior's depth (PipelineParams::center_rim_margin, which the
+    // pipeline applies): a cap around a direction has its rim in front of the centre, as a patch
+    // seen through a gap in the leaves has, and the limit moves such a prior forward (fits small;
+    // docs/benchmarks.md, "The centre prior held to the deepest seen points").
+    CenterPriorBlend unlimited;
+    unlimited.rim_margin = -1.0;
     const SurfaceNormals n = normalsFromMean(pts, with_edges), inner = normalsFromMean(pts);
     const double v = fruit.volume();
     for (const bool blend : {false, true})
       for (const bool edges : {true, false}) {
         const auto& normals = edges ? n.normals : inner.normals;
         const Eigen::Vector3d prior =
-            blend ? blendedFruitCenter(pts, normals, 2.5) : estimateFruitCenter(pts, normals, 2.5);
+            blend ? blendedFruitCenter(pts, normals, 2.5, unlimited) : estimateFruitCenter(pts, normals, 2.5);
         const FitResult fit = fitSuperellipsoid(pts, prior, no_size_prior);
         auto& acc = edges ? (blend ? blend_acc : lines_acc) : (blend ? blend_inner_acc : lines_inner_acc);
         acc.push_back(1.0 - std::abs(fit.shape.volume() - v) / v);

@@ -17,6 +17,7 @@ namespace fruit_shape_completion {
 std::vector<std::vector<int>> euclideanClusters(const PointList& points, const ClusteringParams& params,
                                                 ClustersLeftOut* left_out) {
   std::vector<std::vector<int>> clusters;
+  if (left_out) *left_out = ClustersLeftOut();
   if (points.empty() || !(params.tolerance > 0.0)) return clusters;
   std::vector<std::pair<std::uint64_t, int>> keyed;
   keyed.reserve(points.size());
@@ -54,7 +55,6 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
     clusters[static_cast<std::size_t>(slot[r])].push_back(static_cast<int>(i));
   }
   if (left_out) {
-    *left_out = ClustersLeftOut();
     for (const auto& c : clusters) {
       const int size = static_cast<int>(c.size());
       left_out->oversized += size > params.max_size;

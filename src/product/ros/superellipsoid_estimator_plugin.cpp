@@ -176,8 +176,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"rays outside the map", std::to_string(s.rays_outside)},
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
-            {"surface clusters too large to fit (last update; cluster_max_size)", std::to_string(s.oversized_clusters)},
-            {"surface points in clusters too small to fit (last update; cluster_min_size)",
+            {"surface clusters too large to fit (formed at the last update, around the blocks it changed; "
+             "cluster_max_size)",
+             std::to_string(s.oversized_clusters)},
+            {"surface points in clusters too small to fit (formed at the last update, around the blocks it "
+             "changed; cluster_min_size)",
              std::to_string(s.undersized_points)},
             {"fruit volumes: median 90 % interval half-width [%]", trust.first},
             {"fruit centres: median 90 % radius [mm]", trust.second},
