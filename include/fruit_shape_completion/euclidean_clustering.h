@@ -18,6 +18,14 @@ struct ClustersLeftOut {
   int oversized = 0;          // above max_size: a dense cloud, or fruits and leaves grown into one
   int undersized = 0;         // below min_size: specks, or a fruit seen through a small gap
   int undersized_points = 0;  // their points
+
+  // Whether a component of `size` points is a cluster under `params`; if not, it is counted here.
+  bool admits(int size, const ClusteringParams& params) {
+    oversized += size > params.max_size;
+    undersized += size < params.min_size;
+    undersized_points += size < params.min_size ? size : 0;
+    return size >= params.min_size && size <= params.max_size;
+  }
 };
 
 // Non-finite points are ignored. Clusters are sorted by size, largest first; each cluster's

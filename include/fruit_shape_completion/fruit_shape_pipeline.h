@@ -59,9 +59,7 @@ struct PipelineStats {
   int input_points = 0;
   int non_finite_points = 0;  // skipped
   int clusters = 0;  // examined this update (around the changed blocks when only those were re-clustered)
-  int oversized_clusters = 0;  // formed this update with more than clustering.max_size points: not fitted
-  int undersized_clusters = 0;  // formed this update with fewer than clustering.min_size points: not fitted
-  int undersized_points = 0;    // their points
+  ClustersLeftOut left_out;  // formed this update, not fitted for their size (outside clustering's min..max_size)
   bool local = false;  // only the clusters around the changed blocks were formed again
   int fitted = 0;  // fits run this update (others reused)
   int kept = 0;    // changed clusters whose previous fit still explained them (not refitted)

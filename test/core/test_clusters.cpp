@@ -114,9 +114,9 @@ TEST(EuclideanClustering, SizeLimitsAndNonFinitePoints) {
   pipeline_params.clustering = params;
   FruitShapePipeline pipeline(pipeline_params);
   EXPECT_TRUE(pipeline.update(cloud).empty());
-  EXPECT_EQ(pipeline.lastStats().oversized_clusters, 1);
-  EXPECT_EQ(pipeline.lastStats().undersized_clusters, 1);
-  EXPECT_EQ(pipeline.lastStats().undersized_points, 20);
+  EXPECT_EQ(pipeline.lastStats().left_out.oversized, 1);
+  EXPECT_EQ(pipeline.lastStats().left_out.undersized, 1);
+  EXPECT_EQ(pipeline.lastStats().left_out.undersized_points, 20);
   EXPECT_EQ(pipeline.lastStats().clusters, 0);
   EXPECT_TRUE(euclideanClusters({}, ClusteringParams()).empty());
 }

@@ -687,8 +687,8 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
       const auto& b = whole.update(surface);
       local_updates += local.lastStats().local;
       // Local clusters are whole components of the surface: never more left out than the whole has.
-      EXPECT_LE(local.lastStats().undersized_clusters, whole.lastStats().undersized_clusters) << "view at x = " << x;
-      if (local.lastStats().local) local_specks += local.lastStats().undersized_clusters;
+      EXPECT_LE(local.lastStats().left_out.undersized, whole.lastStats().left_out.undersized) << "view at x = " << x;
+      if (local.lastStats().local) local_specks += local.lastStats().left_out.undersized;
       if (x > 1.0) {
         local_clusters_late += local.lastStats().clusters;
         whole_clusters_late += whole.lastStats().clusters;
@@ -716,8 +716,8 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
   ASSERT_GT(speck_points, 0);
   FruitShapePipeline check;
   check.update(without_speck);
-  EXPECT_EQ(whole.lastStats().undersized_clusters, check.lastStats().undersized_clusters + 1);
-  EXPECT_EQ(whole.lastStats().undersized_points, check.lastStats().undersized_points + speck_points);
+  EXPECT_EQ(whole.lastStats().left_out.undersized, check.lastStats().left_out.undersized + 1);
+  EXPECT_EQ(whole.lastStats().left_out.undersized_points, check.lastStats().left_out.undersized_points + speck_points);
   EXPECT_GE(local_specks, 1);  // counted by a local update, where the views that saw it changed the surface
   int found = 0;
   for (const auto& f : whole.fruits()) found += f.accepted;

@@ -63,17 +63,17 @@ int main(int argc, char** argv) {
   std::cerr << ", " << st.clusters << " clusters, " << st.accepted << " accepted fits\n";
   if (static_cast<int>(cloud.points.size()) - non_finite == 0)
     std::cerr << "fit_cloud: warning: the cloud has no finite points, nothing to fit\n";
-  else if (st.clusters == 0 && st.oversized_clusters == 0 && st.undersized_clusters == 0)
+  else if (st.clusters == 0 && st.left_out.oversized == 0 && st.left_out.undersized == 0)
     std::cerr << "fit_cloud: warning: no cluster of " << pipeline.params().clustering.min_size
               << ".." << pipeline.params().clustering.max_size << " points within "
               << pipeline.params().clustering.tolerance << " m; nothing to fit\n";
-  if (st.undersized_clusters > 0)
-    std::cerr << "fit_cloud: warning: " << st.undersized_points << (voxel > 0.0 ? " thinned" : "")
-              << " point(s) in " << st.undersized_clusters << " cluster(s) of fewer than "
+  if (st.left_out.undersized > 0)
+    std::cerr << "fit_cloud: warning: " << st.left_out.undersized_points << (voxel > 0.0 ? " thinned" : "")
+              << " point(s) in " << st.left_out.undersized << " cluster(s) of fewer than "
               << pipeline.params().clustering.min_size
               << " points not fitted (stray points, or fruits seen too little)\n";
-  if (st.oversized_clusters > 0)
-    std::cerr << "fit_cloud: warning: " << st.oversized_clusters << " cluster(s) of more than "
+  if (st.left_out.oversized > 0)
+    std::cerr << "fit_cloud: warning: " << st.left_out.oversized << " cluster(s) of more than "
               << pipeline.params().clustering.max_size
               << " points not fitted (a cloud far denser than a 4 mm map: thin it, e.g. --voxel 0.003)\n";
   for (const auto& f : fruits)

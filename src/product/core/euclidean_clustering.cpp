@@ -54,20 +54,13 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
     }
     clusters[static_cast<std::size_t>(slot[r])].push_back(static_cast<int>(i));
   }
-  if (left_out) {
-    for (const auto& c : clusters) {
-      const int size = static_cast<int>(c.size());
-      left_out->oversized += size > params.max_size;
-      left_out->undersized += size < params.min_size;
-      left_out->undersized_points += size < params.min_size ? size : 0;
-    }
-  }
+  ClustersLeftOut counted;
   clusters.erase(std::remove_if(clusters.begin(), clusters.end(),
                                 [&](const std::vector<int>& c) {
-                                  const int size = static_cast<int>(c.size());
-                                  return size < params.min_size || size > params.max_size;
+                                  return !counted.admits(static_cast<int>(c.size()), params);
                                 }),
                  clusters.end());
+  if (left_out) *left_out = counted;
   // Largest first; equal sizes in the order of their first point.
   std::stable_sort(clusters.begin(), clusters.end(), [](const auto& l, const auto& r) { return l.size() > r.size(); });
   return clusters;

@@ -271,11 +271,8 @@ const std::vector<FruitEstimate>& FruitShapePipeline::run(const PointList* cloud
       for (const auto& p : *cloud)
         if (p.allFinite()) filtered.push_back(p);
     }
-    ClustersLeftOut left_out;
-    clusters = euclideanClusters(stats_.non_finite_points > 0 ? filtered : *cloud, params_.clustering, &left_out);
-    stats_.oversized_clusters = left_out.oversized;
-    stats_.undersized_clusters = left_out.undersized;
-    stats_.undersized_points = left_out.undersized_points;
+    clusters = euclideanClusters(stats_.non_finite_points > 0 ? filtered : *cloud, params_.clustering,
+                                 &stats_.left_out);
   }
   // What the clusters index.
   const PointList& finite = local ? gathered : stats_.non_finite_points > 0 ? filtered : *cloud;

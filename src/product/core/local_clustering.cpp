@@ -102,14 +102,8 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
   }
   stats_.non_finite_points += skipped;
   std::vector<std::vector<int>> clusters;
-  for (auto& c : found) {
-    const int size = static_cast<int>(c.size());
-    stats_.oversized_clusters += size > params_.clustering.max_size;
-    stats_.undersized_clusters += size < params_.clustering.min_size;
-    stats_.undersized_points += size < params_.clustering.min_size ? size : 0;
-    if (static_cast<int>(c.size()) >= params_.clustering.min_size && static_cast<int>(c.size()) <= params_.clustering.max_size)
-      clusters.push_back(std::move(c));
-  }
+  for (auto& c : found)
+    if (stats_.left_out.admits(static_cast<int>(c.size()), params_.clustering)) clusters.push_back(std::move(c));
   std::stable_sort(clusters.begin(), clusters.end(), [](const auto& l, const auto& r) { return l.size() > r.size(); });
   std::vector<Track> kept;
   for (std::size_t k = 0; k < tracks_.size(); ++k)

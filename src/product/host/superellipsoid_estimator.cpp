@@ -189,8 +189,8 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
   }
   std::lock_guard<std::mutex> results_lock(results_mutex_);
   s.fruits = accepted_->size();
-  s.oversized_clusters = static_cast<std::size_t>(stats_.oversized_clusters);
-  s.undersized_points = static_cast<std::size_t>(stats_.undersized_points);
+  s.oversized_clusters = static_cast<std::size_t>(stats_.left_out.oversized);
+  s.undersized_points = static_cast<std::size_t>(stats_.left_out.undersized_points);
   return s;
 }
 

@@ -133,7 +133,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     check();
     estimator_->update();
     logIntegration();
-    if (const int oversized = estimator_->lastPipelineStats().oversized_clusters; oversized > 0)
+    if (const int oversized = estimator_->lastPipelineStats().left_out.oversized; oversized > 0)
       ROS_WARN_THROTTLE(10.0, "%s: %d surface clusters hold more than cluster_max_size points and were not fitted "
                         "(fruits and leaves grown into one, or a cloud far denser than the map)", name_.c_str(), oversized);
     // Read and publish in one step with reset(): a fit that a reset overtook publishes the
