@@ -5,8 +5,13 @@
 // update against that update's fruits; a fruit fitted for the first time is also matched against
 // the last `kept_views` views, so that the views that found it count. Memory is bounded: each
 // view keeps at most `points_per_view` of its points, and only the last `kept_views` views.
+// Frames from one camera pose are one view: upstream's planner inserts every frame while the arm
+// stands still (insert_scan_if_not_moved, on by default), and a fruit seen from one place would
+// count as seen in many, its interval narrowed as if many views' depth errors averaged out.
 #include <fruit_shape_completion/fruit_report.h>
 
+#include <Eigen/Geometry>
+#include <cstdint>
 #include <deque>
 #include <map>
 #include <set>
@@ -16,7 +21,11 @@ namespace fruit_shape_completion {
 class FruitSightingLog {
  public:
   explicit FruitSightingLog(std::size_t kept_views = 64, std::size_t points_per_view = 256);
-  void addView(double time, const PointList& fruit_points);
+  // A frame whose camera lies within kSamePoseMove and kSamePoseTurnDeg of the pose that began
+  // the current view belongs to that view.
+  static constexpr double kSamePoseMove = 0.02;     // [m]
+  static constexpr double kSamePoseTurnDeg = 5.0;
+  void addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose);
   void update(const std::vector<FruitEstimate>& fruits);
   const std::map<int, FruitSightings>& sightings() const { return sightings_; }
   void clear();
@@ -24,14 +33,18 @@ class FruitSightingLog {
  private:
   struct View {
     double time;
+    std::uint64_t pose;  // which camera pose: frames from one share it
     PointList points;
     // Their bounds: a fruit out of reach of the box is skipped without a look at each point
     // (a row holds hundreds of fruits, a view sees a few).
     Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
   };
   static bool saw(const View& view, const FruitEstimate& fruit);
-  static void record(const View& view, FruitSightings* s);
+  void record(const View& view, int fruit_id, FruitSightings* s);
   std::size_t kept_views_, points_per_view_;
+  std::uint64_t pose_ = 0;  // the current pose's number; 0: none yet
+  Eigen::Isometry3d pose_start_ = Eigen::Isometry3d::Identity();  // where it began
+  std::map<int, std::uint64_t> last_pose_;  // per fruit, the pose it was last counted from
   std::deque<View> pending_, kept_;  // not yet matched; matched (the newest kept_views_)
   std::map<int, FruitSightings> sightings_;
 };

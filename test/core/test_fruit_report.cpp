@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 using namespace fruit_shape_completion;
@@ -116,16 +117,21 @@ TEST(FruitSightings, ViewsCountForTheFruitsTheirPointsFellOnIncludingViewsBefore
     for (const auto& p : f.shape.sampleSurface(n)) out.push_back(p);
     return out;
   };
+  auto at = [](double x) {  // a camera pose of its own per view
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = Eigen::Vector3d(x, 0, 0);
+    return pose;
+  };
   FruitSightingLog log(8, 64);
-  log.addView(1.0, pointsOn(a, 100));  // before any fit
+  log.addView(1.0, pointsOn(a, 100), at(0.1));  // before any fit
   log.update({a});
-  log.addView(2.0, pointsOn(b, 100));  // b seen; b is fitted only at the next update
-  log.addView(3.0, pointsOn(a, 2));    // two points: not enough to count
+  log.addView(2.0, pointsOn(b, 100), at(0.2));  // b seen; b is fitted only at the next update
+  log.addView(3.0, pointsOn(a, 2), at(0.3));    // two points: not enough to count
   log.update({a, b});
-  log.addView(4.0, pointsOn(a, 100));
+  log.addView(4.0, pointsOn(a, 100), at(0.4));
   PointList both = pointsOn(a, 50);
   for (const auto& p : pointsOn(b, 50)) both.push_back(p);
-  log.addView(5.0, both);
+  log.addView(5.0, both, at(0.5));
   log.update({a, b});
   const auto s = log.sightings();
   ASSERT_EQ(s.count(1), 1u);
@@ -138,6 +144,45 @@ TEST(FruitSightings, ViewsCountForTheFruitsTheirPointsFellOnIncludingViewsBefore
   EXPECT_DOUBLE_EQ(s.at(2).last_seen, 5.0);
   log.clear();
   EXPECT_TRUE(log.sightings().empty());
+}
+
+// Upstream inserts every frame while the arm stands still: frames from one pose are one view, so
+// the volume interval does not narrow for a fruit seen from one place.
+TEST(FruitSightings, FramesFromOneCameraPoseCountAsOneView) {
+  const FruitEstimate a = fruit(1, {0, 0, 0.5}, 0.04);
+  const PointList seen = a.shape.sampleSurface(100);
+  auto pose = [](double x, double yaw_deg) {
+    Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+    p.translation() = Eigen::Vector3d(x, 0, 0);
+    p.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return p;
+  };
+  FruitSightingLog log(16, 64);
+  for (int k = 0; k < 5; ++k) log.addView(k, seen, pose(0.0, 0.0));  // standing still
+  log.update({a});
+  EXPECT_EQ(log.sightings().at(1).views, 1);
+  log.addView(5, seen, pose(0.001, 0.5));  // jitter of one pose
+  log.update({a});
+  EXPECT_EQ(log.sightings().at(1).views, 1);
+  log.addView(6, seen, pose(0.03, 0.0));   // moved 3 cm: another view
+  log.addView(7, seen, pose(0.03, 0.0));
+  log.update({a});
+  EXPECT_EQ(log.sightings().at(1).views, 2);
+  log.addView(8, seen, pose(0.03, 8.0));   // turned 8 degrees in place: another view
+  log.update({a});
+  EXPECT_EQ(log.sightings().at(1).views, 3);
+  // Creeping 1.5 cm per frame: measured from where the view began, every second frame is new.
+  for (int k = 1; k <= 4; ++k) log.addView(8 + k, seen, pose(0.03 + 0.015 * k, 8.0));
+  log.update({a});
+  EXPECT_EQ(log.sightings().at(1).views, 5);
+  // A pose that is not finite is never the same pose.
+  Eigen::Isometry3d bad = pose(0.09, 8.0);
+  bad.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  log.addView(13, seen, bad);
+  log.addView(14, seen, bad);
+  log.update({a});
+  EXPECT_EQ(log.sightings().at(1).views, 7);
+  EXPECT_DOUBLE_EQ(log.sightings().at(1).last_seen, 14.0);
 }
 
 TEST(AtomicFile, AKilledSavesTemporaryIsRemovedOnceOldAndOthersAreLeftAlone) {

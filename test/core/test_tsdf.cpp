@@ -303,6 +303,35 @@ TEST(TsdfMap, SaveAndLoadRestoreTheMapAndRefuseBrokenFiles) {
   std::remove(path.c_str());
 }
 
+// A file's block side replaces the map's, and the budget then holds that many of its blocks:
+// 64-voxel blocks (2 MiB) in a map made for 16 (32 KiB) must not get the smaller blocks' count.
+TEST(TsdfMap, LoadingAnotherBlockSideKeepsTheMemoryBudget) {
+  TsdfMapParams paper_blocks;
+  paper_blocks.voxels_per_side = 64;
+  TsdfMap saved(paper_blocks);
+  TsdfVoxel v;
+  v.distance = 0.001f;
+  v.weight = 1.0f;
+  ASSERT_TRUE(saved.setVoxel(VoxelIndex(1, 2, 3), v));
+  const std::string path = "/tmp/fsc_map_side_" + std::to_string(::getpid()) + ".tsdf";
+  std::string err;
+  ASSERT_TRUE(saved.save(path, &err)) << err;
+  TsdfMapParams small_blocks;
+  small_blocks.voxels_per_side = 16;
+  small_blocks.memory_budget_mb = 5.0;  // 160 blocks of 16, 2 of 64
+  TsdfMap map(small_blocks);
+  ASSERT_TRUE(map.load(path, &err)) << err;
+  std::remove(path.c_str());
+  EXPECT_EQ(map.voxelsPerSide(), 64);
+  EXPECT_EQ(map.params().maxBlocks(), 2u);
+  EXPECT_FALSE(map.atBudget());
+  EXPECT_TRUE(map.setVoxel(VoxelIndex(1000, 2, 3), v));  // a second block: the budget's last
+  EXPECT_TRUE(map.atBudget());
+  EXPECT_FALSE(map.setVoxel(VoxelIndex(2000, 2, 3), v));
+  EXPECT_EQ(map.blockCount(), 2u);
+  EXPECT_LE(map.memoryBytes(), static_cast<std::size_t>(5.0 * 1048576.0));
+}
+
 TEST(TsdfMap, MemoryCropBoxBlockLimitAndReset) {
   AnalyticScene scene;
   scene.shapes.push_back(sphere(0.04, Eigen::Vector3d(0, 0, 0.5)));

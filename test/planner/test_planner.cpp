@@ -452,6 +452,49 @@ TEST(SuperellipsoidEstimator, AFruitsIntervalWidensWhenFewViewsSawIt) {
   });
 }
 
+// Upstream inserts every frame while the arm stands still: a fruit seen from three poses, four
+// frames each, was seen in three views, and its interval is three views' (not twelve). A view
+// without fruit points (exploring, leaves only) is counted as such, not as refused.
+TEST(SuperellipsoidEstimator, FramesFromOnePoseCountOnceAndViewsWithoutFruitAreNotRefused) {
+  std::mt19937 rng(2);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  SuperellipsoidEstimator est;
+  double time = 0.0;
+  for (int v = 0; v < 3; ++v) {
+    const PartialView view(truth, Eigen::Vector3d(std::cos(v), -1, std::sin(v)), v);
+    for (int frame = 0; frame < 4; ++frame) est.insertView(view.data(time += 0.1));
+    est.update();
+  }
+  const PointList none;
+  const PartialView last(truth, Eigen::Vector3d(1, -1, 0), 9);
+  est.insertView(ViewData{none, none, last.pose, time += 0.1, ViewSource::kFruitPoints});
+  est.update();
+  ASSERT_EQ(est.fruits().size(), 1u);
+  const FruitEstimate f = est.fruits()[0];
+  EXPECT_EQ(f.views, 3);
+  const VolumeInterval three = volumeInterval90(f);
+  EXPECT_EQ(f.volume_lo, three.lo);
+  EXPECT_EQ(f.volume_hi, three.hi);
+  FruitEstimate twelve = f;
+  twelve.views = 12;
+  EXPECT_GT(f.volume_hi - f.volume_lo, volumeInterval90(twelve).hi - volumeInterval90(twelve).lo);
+  const EstimatorStatus s = est.status();
+  EXPECT_EQ(s.input.views, 13u);
+  EXPECT_EQ(s.views_without_fruit, 1u);
+  EXPECT_EQ(s.views_refused, 0u);
+  EXPECT_TRUE(est.takeIntegrationProblems().empty());
+  // A saved map holds no views: after a load its fruit counts the views from then on.
+  const std::string path = (std::filesystem::temp_directory_path() / "fsc_test_views_load.tsdf").string();
+  std::string error;
+  ASSERT_TRUE(est.saveMap(path, &error)) << error;
+  ASSERT_TRUE(est.loadMap(path, &error)) << error;
+  std::filesystem::remove(path);
+  EXPECT_TRUE(est.sightings().empty());
+  est.update();
+  ASSERT_EQ(est.fruits().size(), 1u);
+  EXPECT_EQ(est.fruits()[0].views, 1);  // none counted since the load: read as seen in one
+}
+
 // The bytes saveMap writes (empty, with a test failure, if it fails).
 static std::string savedMap(SuperellipsoidEstimator& est) {
   const std::string path = (std::filesystem::temp_directory_path() / "fsc_test_saved_map.tsdf").string();

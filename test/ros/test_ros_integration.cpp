@@ -334,6 +334,35 @@ TEST(Plugin, LoadsByNameThroughPluginlib) {
   plugin.reset();
 }
 
+// A configuration written for an older version says publish_targets: dynamic_reconfigure, which
+// knows only shape_targets, must not switch the targets back on with its default.
+TEST(Plugin, TheOlderPublishTargetsNameStillSwitchesTargetsOff) {
+  pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
+  std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
+  ros::NodeHandle nh("~/legacy_targets");
+  nh.setParam("superellipsoids_topic", "legacy_superellipsoids");
+  nh.setParam("publish_targets", false);
+  plugin->initialize("legacy_targets", nh, "world");
+  std::mt19937 rng(4);
+  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+  ScanParams scan;
+  scan.view_dir = Eigen::Vector3d(0, -1, 0);
+  scan.visible_fraction = 0.6;
+  scan.voxel = 0.002;
+  const PointList fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan), none;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(0, 0.1, 0.5);
+  pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+  plugin->insertView(host::ViewData{fruit, none, pose, 0.0});
+  plugin->update();
+  ASSERT_EQ(plugin->fruits().size(), 1u);
+  EXPECT_TRUE(plugin->extraTargets().empty());
+  bool on = true;
+  EXPECT_TRUE(nh.getParam("shape_targets", on));
+  EXPECT_FALSE(on);
+  plugin.reset();
+}
+
 TEST(Plugin, FullResolutionFruitCloudTopicFeedsTheMapInsteadOfThePlannersViews) {
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader("fruit_shape_completion", "fruit_shape_completion::ShapeEstimatorPlugin");
   std::unique_ptr<ShapeEstimatorPlugin> plugin(loader.createUnmanagedInstance("fruit_shape_completion/SuperellipsoidEstimator"));
@@ -385,6 +414,13 @@ TEST(Plugin, FullResolutionFruitCloudTopicFeedsTheMapInsteadOfThePlannersViews) 
   ASSERT_EQ(plugin->fruits().size(), 1u);
   EXPECT_LT((plugin->fruits()[0].center() - s.truth.t).norm(), 0.005);
   EXPECT_NEAR(plugin->fruits()[0].volume, s.truth.volume(), 0.1 * s.truth.volume());
+  // A detector's NaN points are dropped on reading, and counted.
+  const std::size_t skipped = diagnosticCount(*plugin, "points skipped (NaN/Inf, range)");
+  const PointList nans(5, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  pub.publish(ros_io::toCloud(nans, poses[0].child_frame_id, ros::Time(0)));
+  ASSERT_TRUE(waitFor([&] { return diagnosticCount(*plugin, "points skipped (NaN/Inf, range)") >= skipped + 5; }, 10.0));
+  EXPECT_EQ(diagnosticCount(*plugin, "points skipped (NaN/Inf, range)"), skipped + 5);
+  EXPECT_EQ(plugin->fruits().size(), 1u);
   plugin.reset();
 }
 

@@ -62,6 +62,7 @@ struct InputTotals {
 // counters behind its warnings, for logs and diagnostics.
 struct EstimatorStatus {
   std::size_t views_refused = 0;     // by the input stage or the map
+  std::size_t views_without_fruit = 0;  // no fruit points left after the input stage: nothing to integrate
   std::size_t points_skipped = 0;    // NaN/Inf, or outside the range limits
   std::size_t rays_outside = 0;      // partly outside the crop box or the map's range
   std::size_t rays_over_budget = 0;  // partly dropped at the memory budget

@@ -351,6 +351,7 @@ int main(int argc, char** argv) {
   app.add_option("--noise-bias", params.fit.noise_bias, "the fit's noise-bias weight (fit_noise_bias)")->capture_default_str();
   app.add_option("--size-prior", params.fit.size_prior, "the fit's pull toward smaller shapes (fit_size_prior) [m^2]")->capture_default_str();
   app.add_option("--gamma", params.fit.gamma, "the fit's axis similarity weight (fit_gamma)")->capture_default_str();
+  app.add_option("--min-axis", params.fit.min_axis, "the fit's lower semi-axis bound (min_axis) [m]")->capture_default_str();
   app.add_option("--max-e", params.fit.max_e, "the fit's upper exponent bound (max_e)")->capture_default_str();
   app.add_option("--normal-edge-offset", params.normals.max_edge_offset,
                  "normals of points whose neighbourhood mean lies this share of the radius off them are dropped (0: off)")

@@ -24,7 +24,8 @@ void FruitInputParams::validate() const {
   if (!(veil_radius > 0.0 && veil_radius <= 0.2)) throw std::invalid_argument("veil_radius must be in (0, 0.2] m");
   if (!(veil_angle_deg > 0.0 && veil_angle_deg < 90.0)) throw std::invalid_argument("veil_angle_deg must be in (0, 90)");
   if (!(veil_min_gap >= 0.0 && veil_min_gap < veil_radius))
-    throw std::invalid_argument("veil_min_gap must be in [0, veil_radius)");
+    throw std::invalid_argument("veil_radius must exceed veil_min_gap (" + std::to_string(veil_min_gap) +
+                                " m: closer points are one surface), and veil_min_gap must not be negative");
 }
 
 FruitInputStage::FruitInputStage(const FruitInputParams& params) : params_(params), red_(params.red_test) {

@@ -8,8 +8,16 @@ namespace fruit_shape_completion {
 FruitSightingLog::FruitSightingLog(std::size_t kept_views, std::size_t points_per_view)
     : kept_views_(std::max<std::size_t>(1, kept_views)), points_per_view_(std::max<std::size_t>(1, points_per_view)) {}
 
-void FruitSightingLog::addView(double time, const PointList& fruit_points) {
-  View v{time, {}};
+void FruitSightingLog::addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose) {
+  const bool finite = sensor_pose.matrix().allFinite();
+  const bool same_pose =
+      pose_ > 0 && finite && (sensor_pose.translation() - pose_start_.translation()).norm() < kSamePoseMove &&
+      Eigen::AngleAxisd(pose_start_.linear().transpose() * sensor_pose.linear()).angle() < kSamePoseTurnDeg * M_PI / 180.0;
+  if (!same_pose) {
+    ++pose_;
+    if (finite) pose_start_ = sensor_pose;
+  }
+  View v{time, pose_, {}};
   const std::size_t n = fruit_points.size(), keep = std::min(n, points_per_view_);
   v.points.reserve(keep);
   for (std::size_t i = 0; i < keep; ++i) {
@@ -42,8 +50,10 @@ bool FruitSightingLog::saw(const View& view, const FruitEstimate& fruit) {
   return false;
 }
 
-void FruitSightingLog::record(const View& view, FruitSightings* s) {
-  ++s->views;
+void FruitSightingLog::record(const View& view, int fruit_id, FruitSightings* s) {
+  std::uint64_t& last = last_pose_[fruit_id];
+  if (last != view.pose) ++s->views;  // views of one pose are consecutive
+  last = view.pose;
   if (!(s->first_seen <= view.time)) s->first_seen = view.time;  // NaN compares false
   if (!(s->last_seen >= view.time)) s->last_seen = view.time;
 }
@@ -55,10 +65,10 @@ void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits) {
     if (it == sightings_.end()) {  // new: the views that found it may already be matched
       it = sightings_.emplace(f.id, FruitSightings()).first;
       for (const auto& v : kept_)
-        if (saw(v, f)) record(v, &it->second);
+        if (saw(v, f)) record(v, f.id, &it->second);
     }
     for (const auto& v : pending_)
-      if (saw(v, f)) record(v, &it->second);
+      if (saw(v, f)) record(v, f.id, &it->second);
   }
   for (auto& v : pending_) kept_.push_back(std::move(v));
   pending_.clear();
@@ -69,6 +79,8 @@ void FruitSightingLog::clear() {
   pending_.clear();
   kept_.clear();
   sightings_.clear();
+  last_pose_.clear();
+  pose_ = 0;
 }
 
 }  // namespace fruit_shape_completion

@@ -104,7 +104,7 @@ void FitParams::validate() const {
   if (!(initial_e >= min_e && initial_e <= max_e))
     fail("initial_e must lie within the exponent bounds");
   if (max_iterations < 1) fail("max_iterations must be >= 1");
-  if (max_points != 0 && max_points < 11) fail("max_points must be 0 (all) or >= 11");
+  if (max_points != 0 && max_points < 11) fail("max_points (max_fit_points) must be 0 (all) or >= 11");
   if (!(function_tolerance > 0.0 && function_tolerance < 1.0)) fail("function_tolerance must be in (0, 1)");
   if (!(stall_tolerance >= 0.0 && stall_tolerance < 1.0)) fail("stall_tolerance must be in [0, 1)");
   if (!(max_rms > 0.0)) fail("max_rms must be > 0");

@@ -265,7 +265,8 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
     }
     resetLog();
     blocks_.swap(loaded.blocks_);
-    params_ = p;  // the file's block side may differ from the map's
+    params_ = p;  // the file's block side may differ from the map's, and with it the blocks the budget holds
+    max_blocks_ = p.maxBlocks();
     cached_block_ = nullptr;
     epoch_ = nextEpoch();
     revision_ = loaded.revision_;

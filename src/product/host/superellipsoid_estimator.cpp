@@ -97,7 +97,7 @@ FruitInput SuperellipsoidEstimator::insertViewReporting(const ViewData& view) {
   FruitInput input = runInputStage(*stage, view);
   if (input.ok()) {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
-    sightings_.addView(view.time, input.fruit);
+    sightings_.addView(view.time, input.fruit, view.sensor_pose);
   }
   input.full.clear();  // the report keeps its counts, not its points
   input.mask.clear();
@@ -145,7 +145,13 @@ void SuperellipsoidEstimator::integratePending(std::size_t max_views) {
       pending_.erase(pending_.begin());
     }
     const bool input_refused = !v.refused.empty();
-    if (!input_refused) {
+    // A view without fruit points (exploring, leaves only) is normal: nothing to integrate, not
+    // a refused view.
+    const bool no_fruit = !input_refused && v.fruit.empty();
+    if (no_fruit) {
+      last_ = IntegrationReport();
+      ++totals_.views_without_fruit;
+    } else if (!input_refused) {
       try {
         last_ = integrator_.integrate(map_, v.fruit, v.sensor_pose);
       } catch (...) {  // the host counts and reports the call that threw
@@ -342,6 +348,9 @@ bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* erro
   integratePending();  // into the map being replaced, as they came before the load
   map_ = std::move(loaded);
   dirty_ = true;  // the next update() fits the loaded map
+  // A saved map holds no views: its fruits count the views from the load on.
+  std::lock_guard<std::mutex> sightings_lock(sightings_mutex_);
+  sightings_.clear();
   return true;
 }
 

@@ -84,7 +84,10 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     load_ = nh.advertiseService("load_map", &SuperellipsoidEstimatorPlugin::loadMap, this);
     export_ = nh.advertiseService("export_fruits", &SuperellipsoidEstimatorPlugin::exportFruits, this);
     // The server reads the start values the YAML put in this namespace; its first call applies
-    // them unchanged.
+    // them unchanged. A configuration that still says publish_targets (the older name) has no
+    // shape_targets for the server to read: it gets the value read at start, not the cfg default.
+    if (nh.hasParam("publish_targets") && !nh.hasParam("shape_targets"))
+      nh.setParam("shape_targets", estimator_->liveParams().shape_targets);
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<SuperellipsoidConfig>>(reconfigure_mutex_, nh);
     reconfigure_->setCallback([this](SuperellipsoidConfig& config, uint32_t) { reconfigure(config); });
     if (!fruit_cloud_topic.empty() || !camera_topic.empty()) {
@@ -169,10 +172,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     return {{"planner views received since start", std::to_string(planner_views_)},
             {"views", std::to_string(s.input.views)},
             {"views refused", std::to_string(s.views_refused)},
+            {"views without fruit points", std::to_string(s.views_without_fruit)},
             {"views waiting for the map (integrated at the next update)", std::to_string(estimator_->pendingViews())},
             {"map blocks", std::to_string(s.blocks) + " of " + std::to_string(s.max_blocks)},
             {"map memory [MiB]", std::to_string(s.memory_mb)},
-            {"points skipped (NaN/Inf, range)", std::to_string(s.points_skipped)},
+            {"points skipped (NaN/Inf, range)", std::to_string(s.points_skipped + fruit_cloud_non_finite_)},
             {"rays outside the map", std::to_string(s.rays_outside)},
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
@@ -228,6 +232,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       if (!ros_io::fromCloud(*msg, &points, &non_finite, &error)) {
         ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: %s", name_.c_str(), error.c_str());
         return;
+      }
+      if (non_finite > 0) {
+        const std::size_t so_far = fruit_cloud_non_finite_ += non_finite;
+        ROS_WARN_THROTTLE(10.0, "%s: %zu NaN/Inf points of a fruit cloud skipped (%zu so far)", name_.c_str(), non_finite,
+                          so_far);
       }
       if (msg->header.frame_id.empty() || msg->header.frame_id == map_frame_) {
         ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: it must be in the camera frame (the sensor origin), not '%s'",
@@ -546,6 +555,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::deque<sensor_msgs::ImageConstPtr> masks_;  // oldest first, at most max_masks_
   std::size_t max_masks_ = 16;
   std::atomic<std::size_t> masks_received_{0}, masks_refused_{0}, frames_without_mask_{0};
+  std::atomic<std::size_t> fruit_cloud_non_finite_{0};  // NaN/Inf points of detector fruit clouds, dropped on reading
   std::mutex still_mutex_;  // guards the standalone rest detection below
   Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();
   bool have_last_pose_ = false, rest_taken_ = false;
