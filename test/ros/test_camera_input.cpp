@@ -14,6 +14,7 @@
 
 #include <chrono>
 #include <cstring>
+#include <limits>
 #include <thread>
 
 using namespace fruit_shape_completion;
@@ -192,4 +193,40 @@ TEST(CloudReaders, EmptyCloudsGiveNoPointsAndCountTheirIndices) {
   empty.height = 8;
   EXPECT_TRUE(ros_io::fromCloud(empty, &points, &non_finite, &error)) << error;
   EXPECT_TRUE(points.empty());
+}
+
+// Without a planner, one frame per rest: held 0.3 s within 1 cm and 0.01 rad of where the rest
+// began, not frame to frame; not where the planner's last view stood.
+TEST(CameraRest, OneFramePerRestHeldLongEnoughAndNotThePlannersPose) {
+  using ros_io::CameraRest;
+  auto at = [](double x) {
+    Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+    p.translation() = Eigen::Vector3d(x, 0, 0.5);
+    return p;
+  };
+  CameraRest rest;
+  EXPECT_EQ(rest.observe(at(0.0), 1.0), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(0.0), 1.1), CameraRest::Frame::kSettling);  // two still frames are no rest yet
+  EXPECT_EQ(rest.observe(at(0.0), 1.35), CameraRest::Frame::kTake);
+  EXPECT_EQ(rest.observe(at(0.0), 1.5), CameraRest::Frame::kTaken);
+  EXPECT_EQ(rest.observe(at(0.0), 9.0), CameraRest::Frame::kTaken);
+  // Creeping 5 mm per frame (15 cm/s at 30 Hz): each frame still beside the last, never a rest.
+  int taken = 0;
+  for (int k = 1; k <= 60; ++k)
+    taken += rest.observe(at(0.005 * k), 10.0 + k / 30.0) == CameraRest::Frame::kTake ? 1 : 0;
+  EXPECT_EQ(taken, 0);
+  // Where the planner's last view stood: decided, not taken; elsewhere taken.
+  rest.plannerViewAt(at(1.0));
+  EXPECT_EQ(rest.observe(at(1.005), 20.0), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(1.005), 20.4), CameraRest::Frame::kPlannersPose);
+  EXPECT_EQ(rest.observe(at(1.005), 20.5), CameraRest::Frame::kTaken);
+  EXPECT_EQ(rest.observe(at(1.2), 21.0), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(1.2), 21.4), CameraRest::Frame::kTake);
+  // A bag that loops (stamps back in time) and a pose that is not finite start over.
+  EXPECT_EQ(rest.observe(at(1.2), 2.0), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(1.2), 2.4), CameraRest::Frame::kTake);
+  Eigen::Isometry3d bad = at(1.2);
+  bad.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(rest.observe(bad, 3.0), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(1.2), 3.1), CameraRest::Frame::kMoving);
 }

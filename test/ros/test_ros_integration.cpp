@@ -34,6 +34,7 @@
 #include <future>
 #include <sstream>
 #include <fstream>
+#include <atomic>
 #include <limits>
 
 using namespace fruit_shape_completion;
@@ -353,6 +354,11 @@ TEST(Plugin, TheOlderPublishTargetsNameStillSwitchesTargetsOff) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.translation() = Eigen::Vector3d(0, 0.1, 0.5);
   pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+  std::atomic<int> published{0};
+  ros::NodeHandle top;
+  ros::Subscriber sub = top.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
+      nh.resolveName("legacy_superellipsoids"), 4, [&](const superellipsoid_msgs::SuperellipsoidArray::ConstPtr&) { ++published; });
+  ASSERT_TRUE(waitFor([&] { return sub.getNumPublishers() > 0; }, 10.0));
   plugin->insertView(host::ViewData{fruit, none, pose, 0.0});
   plugin->update();
   ASSERT_EQ(plugin->fruits().size(), 1u);
@@ -360,6 +366,15 @@ TEST(Plugin, TheOlderPublishTargetsNameStillSwitchesTargetsOff) {
   bool on = true;
   EXPECT_TRUE(nh.getParam("shape_targets", on));
   EXPECT_FALSE(on);
+  // Updates without a new view publish nothing new (the topics are latched).
+  ASSERT_TRUE(waitFor([&] { return published.load() == 1; }, 10.0));
+  plugin->update();
+  plugin->update();
+  plugin->insertView(host::ViewData{fruit, none, pose, 1.0});
+  plugin->update();
+  ASSERT_TRUE(waitFor([&] { return published.load() >= 2; }, 10.0));
+  ros::WallDuration(0.5).sleep();  // anything published in between would have arrived by now
+  EXPECT_EQ(published.load(), 2);
   plugin.reset();
 }
 

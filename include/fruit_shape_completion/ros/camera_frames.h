@@ -5,6 +5,7 @@
 // the view was made from (the nearest stamp).
 #include <fruit_shape_completion/fruit_input_stage.h>
 
+#include <Eigen/Geometry>
 #include <ros/time.h>
 #include <sensor_msgs/PointCloud2.h>
 
@@ -51,6 +52,34 @@ class CameraFrameBuffer {
   std::deque<sensor_msgs::PointCloud2ConstPtr> frames_;  // oldest first
   std::size_t evicted_ = 0;
   ros::Time newest_;  // the newest stamp pushed, taken frames included
+};
+
+// When a camera without a planner has come to rest, so that one frame per rest is mapped (as
+// pointcloud_roi's roi_cloud): within kMove and kTurn of where the rest began for kHold of frame
+// stamps (frame to frame alone, an arm creeping at a few cm/s would read as resting). A rest
+// where the planner's last view stood is the planner's: a planner that inserts views only after
+// it moves (insert_scan_if_not_moved false) leaves long gaps, and its view already mapped it.
+// Not thread-safe.
+class CameraRest {
+ public:
+  static constexpr double kMove = 0.01, kTurn = 0.01;  // [m], [rad]
+  static constexpr double kHold = 0.3;                 // [s]
+  enum class Frame {
+    kMoving,         // a new rest may begin here
+    kSettling,       // at rest for less than kHold
+    kTake,           // the rest's frame: map it
+    kPlannersPose,   // the rest's frame, where the planner's last view stood: not mapped
+    kTaken,          // this rest's frame was decided already
+  };
+  Frame observe(const Eigen::Isometry3d& camera_pose, double stamp);
+  void plannerViewAt(const Eigen::Isometry3d& sensor_pose);
+
+ private:
+  Eigen::Isometry3d rest_pose_ = Eigen::Isometry3d::Identity();
+  double rest_since_ = 0.0;
+  bool resting_ = false, decided_ = false;
+  Eigen::Isometry3d planner_pose_ = Eigen::Isometry3d::Identity();
+  bool have_planner_pose_ = false;
 };
 
 }  // namespace ros_io

@@ -1,5 +1,7 @@
 #include <fruit_shape_completion/ros/camera_frames.h>
 
+#include <fruit_shape_completion/fruit_sightings.h>
+
 #include <algorithm>
 #include <chrono>
 
@@ -163,6 +165,39 @@ std::size_t CameraFrameBuffer::bytesLocked() const {
   std::size_t bytes = 0;
   for (const auto& f : frames_) bytes += f->data.size();
   return bytes;
+}
+
+namespace {
+bool near(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double move, double turn) {
+  return (a.translation() - b.translation()).norm() < move &&
+         Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() < turn;
+}
+}  // namespace
+
+CameraRest::Frame CameraRest::observe(const Eigen::Isometry3d& camera_pose, double stamp) {
+  if (!camera_pose.matrix().allFinite() || !std::isfinite(stamp)) {
+    resting_ = false;
+    return Frame::kMoving;
+  }
+  if (!resting_ || !near(camera_pose, rest_pose_, kMove, kTurn) || stamp < rest_since_) {
+    rest_pose_ = camera_pose;
+    rest_since_ = stamp;
+    resting_ = true;
+    decided_ = false;
+    return Frame::kMoving;
+  }
+  if (decided_) return Frame::kTaken;
+  if (stamp - rest_since_ < kHold) return Frame::kSettling;
+  decided_ = true;
+  return have_planner_pose_ && near(camera_pose, planner_pose_, FruitSightingLog::kSamePoseMove,
+                                    FruitSightingLog::kSamePoseTurnDeg * M_PI / 180.0)
+             ? Frame::kPlannersPose
+             : Frame::kTake;
+}
+
+void CameraRest::plannerViewAt(const Eigen::Isometry3d& sensor_pose) {
+  have_planner_pose_ = sensor_pose.matrix().allFinite();
+  if (have_planner_pose_) planner_pose_ = sensor_pose;
 }
 
 }  // namespace ros_io

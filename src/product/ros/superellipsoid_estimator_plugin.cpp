@@ -120,6 +120,10 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     ++planner_views_;
     if (fruit_cloud_) return;  // the map is fed by the full-resolution topic
     last_planner_view_ = ros::WallTime::now().toSec();
+    if (camera_buffer_) {
+      std::lock_guard<std::mutex> lock(still_mutex_);
+      rest_.plannerViewAt(view.sensor_pose);
+    }
     if (camera_buffer_ && view.source != host::ViewSource::kCameraFrame) {
       std::string why;
       if (integrateCameraFrame(view.time, &why)) return;
@@ -143,6 +147,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     // cleared state, never its own.
     std::lock_guard<std::mutex> lock(publish_mutex_);
     last_update_ = ros::WallTime::now().toSec();
+    // An update that stored no new results (no view since the last) publishes nothing: the
+    // topics are latched, and a row's markers and surface run to megabytes per message.
+    std::shared_ptr<const std::vector<FruitEstimate>> results = estimator_->sharedFruits();
+    if (results == published_) return;
+    published_ = std::move(results);
     publisher_->publish(estimator_->estimates(), estimator_->surface(), ros::Time::now());
   }
   void cancelUpdate() override {
@@ -163,6 +172,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     std::lock_guard<std::mutex> lock(publish_mutex_);
     estimator_->reset();
     publisher_->publish({}, {}, ros::Time::now());
+    published_ = estimator_->sharedFruits();  // the cleared results, published just now
   }
   std::vector<std::pair<std::string, std::string>> diagnostics() const override {
     check();
@@ -194,6 +204,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"  of which: no frame within the tolerance", std::to_string(no_frame_)},
             {"  of which: no tf for the frame", std::to_string(no_tf_)},
             {"  of which: malformed frame", std::to_string(bad_frames_)},
+            {"camera rests not taken without a planner: its last view stood there", std::to_string(rests_at_planner_pose_)},
             {"camera clouds not organized (ignored)", std::to_string(not_organized_)},
             {"camera clock jumps back (buffer cleared)", std::to_string(clock_jumps_)},
             {"camera frames too large for the buffer", std::to_string(too_large_)},
@@ -356,7 +367,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       }
       // Without a planner (no view for a while), a frame is taken when the camera has come to
       // rest, as pointcloud_roi's roi_cloud: once per rest, never every frame.
-      if (ros::WallTime::now().toSec() - last_planner_view_ > kStandaloneAfter) integrateIfStill(msg);
+      const double silence = planner_views_ > 0 ? kStandaloneAfterPlanner : kStandaloneAfter;
+      if (ros::WallTime::now().toSec() - last_planner_view_ > silence) integrateIfStill(msg);
     } catch (const std::exception& e) {  // std::bad_alloc among them: drop this frame, keep running
       ROS_ERROR("%s: camera cloud dropped: %s", name_.c_str(), e.what());
     }
@@ -372,16 +384,15 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     }
     {
       std::lock_guard<std::mutex> lock(still_mutex_);
-      const bool still = have_last_pose_ && (pose.translation() - last_pose_.translation()).norm() < 1e-2 &&
-                         Eigen::AngleAxisd(pose.linear().transpose() * last_pose_.linear()).angle() < 1e-2;
-      last_pose_ = pose;
-      have_last_pose_ = true;
-      if (!still) {
-        rest_taken_ = false;
-        return;
+      switch (rest_.observe(pose, msg->header.stamp.toSec())) {
+        case ros_io::CameraRest::Frame::kTake:
+          break;
+        case ros_io::CameraRest::Frame::kPlannersPose:
+          ++rests_at_planner_pose_;
+          return;
+        default:
+          return;
       }
-      if (rest_taken_) return;
-      rest_taken_ = true;
     }
     sensor_msgs::PointCloud2ConstPtr frame = camera_buffer_->take(msg->header.stamp, 0.0);  // not again for a view
     if (!frame) frame = msg;
@@ -532,6 +543,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::unique_ptr<ros_io::FruitPublisher> publisher_;
   std::atomic<double> last_update_{0.0};  // wall time of the last update [s]
   std::mutex publish_mutex_;  // orders publishing after an update with a reset's
+  // The results last published (held, so that no later result can reuse its address).
+  std::shared_ptr<const std::vector<FruitEstimate>> published_;
   std::unique_ptr<host::UpdateWorker> own_updates_;
   ros::ServiceServer clear_, save_, load_, export_;
   boost::recursive_mutex reconfigure_mutex_;
@@ -541,6 +554,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   ros::Subscriber fruit_cloud_;
   // The camera input (camera_cloud_topic).
   static constexpr double kStandaloneAfter = 5.0;  // [s] without a planner view: frames taken at rest
+  // ... once a planner has sent views: one that plans and moves for long between them (failed
+  // attempts, insert_scan_if_not_moved false) is still there, and its next view will map the pose.
+  static constexpr double kStandaloneAfterPlanner = 30.0;
   // [s] a view built from a frame (pointcloud_roi) may overtake the frame on another connection
   static constexpr double kFrameWait = 0.05;
   double pair_tolerance_ = 0.05;                   // [s] view stamp to frame stamp
@@ -556,9 +572,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::size_t max_masks_ = 16;
   std::atomic<std::size_t> masks_received_{0}, masks_refused_{0}, frames_without_mask_{0};
   std::atomic<std::size_t> fruit_cloud_non_finite_{0};  // NaN/Inf points of detector fruit clouds, dropped on reading
-  std::mutex still_mutex_;  // guards the standalone rest detection below
-  Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();
-  bool have_last_pose_ = false, rest_taken_ = false;
+  std::mutex still_mutex_;  // guards rest_
+  ros_io::CameraRest rest_;  // without a planner: when the camera has come to rest
+  std::atomic<std::size_t> rests_at_planner_pose_{0};  // rests not taken: the planner's last view stood there
 };
 
 }  // namespace fruit_shape_completion
