@@ -32,8 +32,8 @@ class FruitSightingLog {
 
  private:
   struct View {
-    double time;
-    std::uint64_t pose;  // which camera pose: frames from one share it
+    double time, last_time;  // of its first and last frame
+    std::uint64_t pose;      // which camera pose: frames from one share it
     PointList points;
     // Their bounds: a fruit out of reach of the box is skipped without a look at each point
     // (a row holds hundreds of fruits, a view sees a few).
@@ -44,6 +44,7 @@ class FruitSightingLog {
   std::size_t kept_views_, points_per_view_;
   std::uint64_t pose_ = 0;  // the current pose's number; 0: none yet
   Eigen::Isometry3d pose_start_ = Eigen::Isometry3d::Identity();  // where it began
+  bool pose_start_valid_ = false;  // false after a pose that was not finite
   std::map<int, std::uint64_t> last_pose_;  // per fruit, the pose it was last counted from
   std::deque<View> pending_, kept_;  // not yet matched; matched (the newest kept_views_)
   std::map<int, FruitSightings> sightings_;

@@ -183,6 +183,26 @@ TEST(FruitSightings, FramesFromOneCameraPoseCountAsOneView) {
   log.update({a});
   EXPECT_EQ(log.sightings().at(1).views, 7);
   EXPECT_DOUBLE_EQ(log.sightings().at(1).last_seen, 14.0);
+  // After a pose that was not finite, the next frame where the last finite view stood is new.
+  log.addView(15, seen, pose(0.09, 8.0));
+  log.update({a});
+  EXPECT_EQ(log.sightings().at(1).views, 8);
+
+  // A fruit fitted only later finds the poses that saw it, its frames on both sides of an update
+  // one view; a log that keeps four entries keeps four poses however many frames each sent.
+  const FruitEstimate b = fruit(2, {0.3, 0, 0.5}, 0.04);
+  const PointList seen_b = b.shape.sampleSurface(100);
+  FruitSightingLog small(4, 64);
+  for (int p = 0; p < 3; ++p)
+    for (int k = 0; k < 10; ++k) small.addView(20 + p + 0.01 * k, seen_b, pose(0.1 * p, 0.0));
+  small.update({a});  // b not fitted yet: its frames wait as kept views
+  for (int k = 0; k < 5; ++k) small.addView(23 + 0.01 * k, seen_b, pose(0.2, 0.0));  // still the third pose
+  small.addView(24, PointList(), pose(0.5, 0.0));  // a frame without fruit points: nothing to match
+  small.update({a, b});
+  ASSERT_EQ(small.sightings().count(2), 1u);
+  EXPECT_EQ(small.sightings().at(2).views, 3);
+  EXPECT_DOUBLE_EQ(small.sightings().at(2).first_seen, 20.0);
+  EXPECT_DOUBLE_EQ(small.sightings().at(2).last_seen, 23.04);
 }
 
 TEST(AtomicFile, AKilledSavesTemporaryIsRemovedOnceOldAndOthersAreLeftAlone) {

@@ -196,7 +196,8 @@ TEST(CloudReaders, EmptyCloudsGiveNoPointsAndCountTheirIndices) {
 }
 
 // Without a planner, one frame per rest: held 0.3 s within 1 cm and 0.01 rad of where the rest
-// began, not frame to frame; not where the planner's last view stood.
+// began, with no gap in the frames seen, not frame to frame; not where the planner's last view
+// stood; a cleared map may be mapped again.
 TEST(CameraRest, OneFramePerRestHeldLongEnoughAndNotThePlannersPose) {
   using ros_io::CameraRest;
   auto at = [](double x) {
@@ -205,28 +206,45 @@ TEST(CameraRest, OneFramePerRestHeldLongEnoughAndNotThePlannersPose) {
     return p;
   };
   CameraRest rest;
-  EXPECT_EQ(rest.observe(at(0.0), 1.0), CameraRest::Frame::kMoving);
-  EXPECT_EQ(rest.observe(at(0.0), 1.1), CameraRest::Frame::kSettling);  // two still frames are no rest yet
-  EXPECT_EQ(rest.observe(at(0.0), 1.35), CameraRest::Frame::kTake);
+  // Frames every 0.1 s at one place from t0; what the frame at t0 + 0.35 s made of it.
+  auto held = [&](double x, double t0) {
+    EXPECT_EQ(rest.observe(at(x), t0), CameraRest::Frame::kMoving);
+    EXPECT_EQ(rest.observe(at(x), t0 + 0.1), CameraRest::Frame::kSettling);  // still frames, no rest yet
+    EXPECT_EQ(rest.observe(at(x), t0 + 0.2), CameraRest::Frame::kSettling);
+    return rest.observe(at(x), t0 + 0.35);
+  };
+  EXPECT_EQ(held(0.0, 1.0), CameraRest::Frame::kTake);
   EXPECT_EQ(rest.observe(at(0.0), 1.5), CameraRest::Frame::kTaken);
-  EXPECT_EQ(rest.observe(at(0.0), 9.0), CameraRest::Frame::kTaken);
+  EXPECT_EQ(rest.observe(at(0.0), 1.7), CameraRest::Frame::kTaken);
+  // Frames missed for longer than the hold (the planner's time, tf missing): a rest starts over.
+  EXPECT_EQ(rest.observe(at(0.0), 9.0), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(0.0), 9.2), CameraRest::Frame::kSettling);
   // Creeping 5 mm per frame (15 cm/s at 30 Hz): each frame still beside the last, never a rest.
   int taken = 0;
   for (int k = 1; k <= 60; ++k)
-    taken += rest.observe(at(0.005 * k), 10.0 + k / 30.0) == CameraRest::Frame::kTake ? 1 : 0;
+    taken += rest.observe(at(0.005 * k), 9.2 + k / 30.0) == CameraRest::Frame::kTake ? 1 : 0;
   EXPECT_EQ(taken, 0);
   // Where the planner's last view stood: decided, not taken; elsewhere taken.
   rest.plannerViewAt(at(1.0));
-  EXPECT_EQ(rest.observe(at(1.005), 20.0), CameraRest::Frame::kMoving);
-  EXPECT_EQ(rest.observe(at(1.005), 20.4), CameraRest::Frame::kPlannersPose);
-  EXPECT_EQ(rest.observe(at(1.005), 20.5), CameraRest::Frame::kTaken);
-  EXPECT_EQ(rest.observe(at(1.2), 21.0), CameraRest::Frame::kMoving);
-  EXPECT_EQ(rest.observe(at(1.2), 21.4), CameraRest::Frame::kTake);
+  EXPECT_EQ(held(1.005, 20.0), CameraRest::Frame::kPlannersPose);
+  EXPECT_EQ(rest.observe(at(1.005), 20.45), CameraRest::Frame::kTaken);
+  EXPECT_EQ(held(1.2, 21.0), CameraRest::Frame::kTake);
+  // A planner view ends the rest in progress: the frames after it settle anew.
+  EXPECT_EQ(rest.observe(at(1.4), 22.0), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(1.4), 22.2), CameraRest::Frame::kSettling);
+  rest.plannerViewAt(at(3.0));
+  EXPECT_EQ(rest.observe(at(1.4), 22.35), CameraRest::Frame::kMoving);
+  // After a reset (the map cleared) the planner's pose and a rest already taken are mapped again.
+  rest.plannerViewAt(at(2.0));
+  EXPECT_EQ(held(2.0, 30.0), CameraRest::Frame::kPlannersPose);
+  rest.reset();
+  EXPECT_EQ(held(2.0, 31.0), CameraRest::Frame::kTake);
+  rest.reset();
+  EXPECT_EQ(rest.observe(at(2.0), 31.45), CameraRest::Frame::kMoving);
   // A bag that loops (stamps back in time) and a pose that is not finite start over.
-  EXPECT_EQ(rest.observe(at(1.2), 2.0), CameraRest::Frame::kMoving);
-  EXPECT_EQ(rest.observe(at(1.2), 2.4), CameraRest::Frame::kTake);
-  Eigen::Isometry3d bad = at(1.2);
+  EXPECT_EQ(held(2.0, 2.0), CameraRest::Frame::kTake);
+  Eigen::Isometry3d bad = at(2.0);
   bad.translation().x() = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(rest.observe(bad, 3.0), CameraRest::Frame::kMoving);
-  EXPECT_EQ(rest.observe(at(1.2), 3.1), CameraRest::Frame::kMoving);
+  EXPECT_EQ(rest.observe(at(2.0), 3.1), CameraRest::Frame::kMoving);
 }

@@ -20,7 +20,12 @@ std::string OrganizedFrame::problem() const {
 
 void FruitInputParams::validate() const {
   depth_edges.validate();
-  outliers.validate();
+  try {
+    outliers.validate();
+  } catch (const std::invalid_argument& e) {  // the map's integrator has an outlier filter of its own
+    throw std::invalid_argument(std::string("input stage (input_outlier_k, input_outlier_std_mul, input_outlier_radius): ") +
+                                e.what());
+  }
   if (!(veil_radius > 0.0 && veil_radius <= 0.2)) throw std::invalid_argument("veil_radius must be in (0, 0.2] m");
   if (!(veil_angle_deg > 0.0 && veil_angle_deg < 90.0)) throw std::invalid_argument("veil_angle_deg must be in (0, 90)");
   if (!(veil_min_gap >= 0.0 && veil_min_gap < veil_radius))

@@ -11,27 +11,38 @@ FruitSightingLog::FruitSightingLog(std::size_t kept_views, std::size_t points_pe
 void FruitSightingLog::addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose) {
   const bool finite = sensor_pose.matrix().allFinite();
   const bool same_pose =
-      pose_ > 0 && finite && (sensor_pose.translation() - pose_start_.translation()).norm() < kSamePoseMove &&
+      pose_ > 0 && pose_start_valid_ && finite &&
+      (sensor_pose.translation() - pose_start_.translation()).norm() < kSamePoseMove &&
       Eigen::AngleAxisd(pose_start_.linear().transpose() * sensor_pose.linear()).angle() < kSamePoseTurnDeg * M_PI / 180.0;
   if (!same_pose) {
     ++pose_;
+    pose_start_valid_ = finite;  // a pose that is not finite is never the same as another
     if (finite) pose_start_ = sensor_pose;
   }
-  View v{time, pose_, {}};
   const std::size_t n = fruit_points.size(), keep = std::min(n, points_per_view_);
-  v.points.reserve(keep);
+  PointList points;
+  points.reserve(keep);
   for (std::size_t i = 0; i < keep; ++i) {
     const Point& p = fruit_points[i * n / keep];
-    if (p.allFinite()) v.points.push_back(p);
+    if (p.allFinite()) points.push_back(p);
   }
-  if (!v.points.empty()) {
-    v.lo = v.hi = v.points.front();
-    for (const auto& p : v.points) {
-      v.lo = v.lo.cwiseMin(p);
-      v.hi = v.hi.cwiseMax(p);
-    }
+  if (points.empty()) return;  // nothing a fruit could be matched with
+  // The frames of one pose wait as one entry: upstream's frames at a pose would otherwise fill
+  // the log, and the fruit a later fit finds first would lose the poses that saw it.
+  View* v = nullptr;
+  if (same_pose && !pending_.empty() && pending_.back().pose == pose_) {
+    v = &pending_.back();
+    v->last_time = std::max(v->last_time, time);
+    for (std::size_t i = 0; i < points.size() && v->points.size() < points_per_view_; ++i) v->points.push_back(points[i]);
+  } else {
+    pending_.push_back(View{time, time, pose_, std::move(points)});
+    v = &pending_.back();
   }
-  pending_.push_back(std::move(v));
+  v->lo = v->hi = v->points.front();
+  for (const auto& p : v->points) {
+    v->lo = v->lo.cwiseMin(p);
+    v->hi = v->hi.cwiseMax(p);
+  }
   // Fits may fall behind the views: the oldest unmatched views go first.
   while (pending_.size() > kept_views_) pending_.pop_front();
 }
@@ -55,7 +66,7 @@ void FruitSightingLog::record(const View& view, int fruit_id, FruitSightings* s)
   if (last != view.pose) ++s->views;  // views of one pose are consecutive
   last = view.pose;
   if (!(s->first_seen <= view.time)) s->first_seen = view.time;  // NaN compares false
-  if (!(s->last_seen >= view.time)) s->last_seen = view.time;
+  if (!(s->last_seen >= view.last_time)) s->last_seen = view.last_time;
 }
 
 void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits) {
@@ -81,6 +92,7 @@ void FruitSightingLog::clear() {
   sightings_.clear();
   last_pose_.clear();
   pose_ = 0;
+  pose_start_valid_ = false;
 }
 
 }  // namespace fruit_shape_completion

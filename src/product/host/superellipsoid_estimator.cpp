@@ -344,6 +344,12 @@ bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* erro
                std::to_string(params_.map.voxel_size) + " m";
     return false;
   }
+  // A fit running on the old map's surface would store and count fruits of a map that is gone:
+  // cancelled as a reset cancels it (it returns within one cluster's fit).
+  ++resets_waiting_;
+  cancel_ = true;
+  std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  if (--resets_waiting_ == 0 && !stopping_) cancel_ = false;
   std::lock_guard<std::mutex> lock(map_mutex_);
   integratePending();  // into the map being replaced, as they came before the load
   map_ = std::move(loaded);

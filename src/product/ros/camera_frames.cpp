@@ -179,7 +179,9 @@ CameraRest::Frame CameraRest::observe(const Eigen::Isometry3d& camera_pose, doub
     resting_ = false;
     return Frame::kMoving;
   }
-  if (!resting_ || !near(camera_pose, rest_pose_, kMove, kTurn) || stamp < rest_since_) {
+  const bool gap = stamp - last_stamp_ > kHold;  // frames not seen meanwhile: the arm may have moved
+  last_stamp_ = stamp;
+  if (!resting_ || gap || !near(camera_pose, rest_pose_, kMove, kTurn) || stamp < rest_since_) {
     rest_pose_ = camera_pose;
     rest_since_ = stamp;
     resting_ = true;
@@ -198,6 +200,13 @@ CameraRest::Frame CameraRest::observe(const Eigen::Isometry3d& camera_pose, doub
 void CameraRest::plannerViewAt(const Eigen::Isometry3d& sensor_pose) {
   have_planner_pose_ = sensor_pose.matrix().allFinite();
   if (have_planner_pose_) planner_pose_ = sensor_pose;
+  resting_ = false;
+}
+
+void CameraRest::reset() {
+  resting_ = false;
+  decided_ = false;
+  have_planner_pose_ = false;
 }
 
 }  // namespace ros_io

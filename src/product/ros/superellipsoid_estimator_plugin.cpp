@@ -1,5 +1,5 @@
 // fruit_shape_completion/SuperellipsoidEstimator: the superellipsoid shape estimator as a
-// pluginlib plugin; publishes its state under its namespace after every update and offers
+// pluginlib plugin; publishes its state under its namespace after each update that changed it, and offers
 // clear_map, save_map, load_map and export_fruits there, and its live settings through
 // dynamic_reconfigure (cfg/Superellipsoid.cfg). With camera_cloud_topic it keeps the camera's last
 // organized clouds and feeds the fruit map from the frame each planner view was made from
@@ -143,8 +143,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     if (const int oversized = estimator_->lastPipelineStats().left_out.oversized; oversized > 0)
       ROS_WARN_THROTTLE(10.0, "%s: %d surface clusters hold more than cluster_max_size points and were not fitted "
                         "(fruits and leaves grown into one, or a cloud far denser than the map)", name_.c_str(), oversized);
-    // Read and publish in one step with reset(): a fit that a reset overtook publishes the
-    // cleared state, never its own.
+    // Read and publish in one step with reset(): a fit that a reset overtook stored nothing, so
+    // it publishes nothing after the reset's cleared state, never its own.
     std::lock_guard<std::mutex> lock(publish_mutex_);
     last_update_ = ros::WallTime::now().toSec();
     // An update that stored no new results (no view since the last) publishes nothing: the
@@ -173,6 +173,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     estimator_->reset();
     publisher_->publish({}, {}, ros::Time::now());
     published_ = estimator_->sharedFruits();  // the cleared results, published just now
+    fruit_cloud_non_finite_ = 0;  // counted since start or reset, as the estimator's counters
+    std::lock_guard<std::mutex> still_lock(still_mutex_);
+    rest_.reset();
   }
   std::vector<std::pair<std::string, std::string>> diagnostics() const override {
     check();
@@ -504,7 +507,13 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     std::string error, warning;
     res.success = estimator_->loadMap(req.file_path, &error, &warning);
     if (!warning.empty()) ROS_WARN("%s: %s", name_.c_str(), warning.c_str());
-    if (res.success) own_updates_->request();
+    if (res.success) {
+      {
+        std::lock_guard<std::mutex> lock(still_mutex_);
+        rest_.reset();  // the loaded map has not seen where the camera rests
+      }
+      own_updates_->request();
+    }
     res.message = res.success ? "loaded " + req.file_path : error;
     return true;
   }
@@ -531,7 +540,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     char text[256];
     std::snprintf(text, sizeof(text),
                   "since start: %zu points skipped, %zu rays outside the map, %zu rays over the memory budget; "
-                  "%zu of %zu blocks, %.0f MiB", s.points_skipped, s.rays_outside, s.rays_over_budget, s.blocks,
+                  "%zu of %zu blocks, %.0f MiB", s.points_skipped + fruit_cloud_non_finite_, s.rays_outside, s.rays_over_budget, s.blocks,
                   s.max_blocks, s.memory_mb);
     return text;
   }
