@@ -146,6 +146,24 @@ void setOneEstimator(const ros::NodeHandle& nh, const std::string& name, const s
   nh.setParam("shape_estimators", list);
 }
 
+// A random fruit 60 % seen by one camera 40 cm from it (2 mm voxels).
+struct HalfSeenFruit {
+  Superellipsoid truth;
+  PointList fruit;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  HalfSeenFruit() {
+    std::mt19937 rng(4);
+    truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
+    ScanParams scan;
+    scan.view_dir = Eigen::Vector3d(0, -1, 0);
+    scan.visible_fraction = 0.6;
+    scan.voxel = 0.002;
+    fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan);
+    pose.translation() = Eigen::Vector3d(0, 0.1, 0.5);
+    pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+  }
+};
+
 // A SuperellipsoidEstimator plugin in ~/<name> fed by the camera clouds on <name>_points.
 std::unique_ptr<ShapeEstimatorPlugin> cameraPlugin(pluginlib::ClassLoader<ShapeEstimatorPlugin>& loader,
                                                    const std::string& name, ros::NodeHandle* nh) {
@@ -318,16 +336,11 @@ TEST(Plugin, LoadsByNameThroughPluginlib) {
   plugin->initialize("plugin_test", nh, "world");
   EXPECT_EQ(plugin->name(), "plugin_test");
   // It works: a half-seen fruit in, a fit out.
-  std::mt19937 rng(4);
-  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  ScanParams scan;
-  scan.view_dir = Eigen::Vector3d(0, -1, 0);
-  scan.visible_fraction = 0.6;
-  scan.voxel = 0.002;
-  const PointList fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan), none;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.translation() = Eigen::Vector3d(0, 0.1, 0.5);
-  pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+  const HalfSeenFruit view;
+  const Superellipsoid& truth = view.truth;
+  const PointList& fruit = view.fruit;
+  const PointList none;
+  const Eigen::Isometry3d& pose = view.pose;
   plugin->insertView(host::ViewData{fruit, none, pose, 0.0});
   plugin->update();
   ASSERT_EQ(plugin->fruits().size(), 1u);
@@ -344,16 +357,11 @@ TEST(Plugin, TheOlderPublishTargetsNameStillSwitchesTargetsOff) {
   nh.setParam("superellipsoids_topic", "legacy_superellipsoids");
   nh.setParam("publish_targets", false);
   plugin->initialize("legacy_targets", nh, "world");
-  std::mt19937 rng(4);
-  const Superellipsoid truth = randomSuperellipsoid(rng, Eigen::Vector3d(0, 0.5, 0.5));
-  ScanParams scan;
-  scan.view_dir = Eigen::Vector3d(0, -1, 0);
-  scan.visible_fraction = 0.6;
-  scan.voxel = 0.002;
-  const PointList fruit = scanFruit(SyntheticFruit::fromSuperellipsoid(truth), scan), none;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.translation() = Eigen::Vector3d(0, 0.1, 0.5);
-  pose.linear() = PinholeCamera::lookingAt(pose.translation(), truth.t).rotation;
+  const HalfSeenFruit view;
+  const Superellipsoid& truth = view.truth;
+  const PointList& fruit = view.fruit;
+  const PointList none;
+  const Eigen::Isometry3d& pose = view.pose;
   std::atomic<int> published{0};
   ros::NodeHandle top;
   ros::Subscriber sub = top.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
