@@ -11,12 +11,17 @@
 #include <fruit_shape_completion/fruit_report.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <deque>
 #include <map>
 #include <set>
 
 namespace fruit_shape_completion {
+
+// Whether two camera poses lie within `move` [m] and `turn` [rad] of each other (false if either
+// is not finite).
+bool posesWithin(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double move, double turn);
 
 class FruitSightingLog {
  public:
@@ -25,6 +30,9 @@ class FruitSightingLog {
   // the current view belongs to that view.
   static constexpr double kSamePoseMove = 0.02;     // [m]
   static constexpr double kSamePoseTurnDeg = 5.0;
+  static bool samePose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return posesWithin(a, b, kSamePoseMove, kSamePoseTurnDeg * M_PI / 180.0);
+  }
   void addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose);
   void update(const std::vector<FruitEstimate>& fruits);
   const std::map<int, FruitSightings>& sightings() const { return sightings_; }

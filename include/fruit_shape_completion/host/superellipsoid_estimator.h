@@ -138,6 +138,9 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   SuperellipsoidEstimatorParams params_;
   const PipelineParams start_pipeline_;
   PipelineParams pipelineWith(const EstimatorLiveParams& live) const;
+  // Makes a running update return early and store nothing (reset, load), and holds fit_mutex_
+  // until the caller has replaced what the update would have read.
+  std::unique_lock<std::mutex> cancelRunningFit();
   // Swapped whole by setLiveParams; a view runs the stage it took, outside the locks.
   std::shared_ptr<const FruitInputStage> input_stage_;
   // Guards input_stage_, live_ and live_pending_; held briefly, never while taking another lock.

@@ -8,12 +8,14 @@ namespace fruit_shape_completion {
 FruitSightingLog::FruitSightingLog(std::size_t kept_views, std::size_t points_per_view)
     : kept_views_(std::max<std::size_t>(1, kept_views)), points_per_view_(std::max<std::size_t>(1, points_per_view)) {}
 
+bool posesWithin(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double move, double turn) {
+  return a.matrix().allFinite() && b.matrix().allFinite() && (a.translation() - b.translation()).norm() < move &&
+         Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() < turn;
+}
+
 void FruitSightingLog::addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose) {
   const bool finite = sensor_pose.matrix().allFinite();
-  const bool same_pose =
-      pose_ > 0 && pose_start_valid_ && finite &&
-      (sensor_pose.translation() - pose_start_.translation()).norm() < kSamePoseMove &&
-      Eigen::AngleAxisd(pose_start_.linear().transpose() * sensor_pose.linear()).angle() < kSamePoseTurnDeg * M_PI / 180.0;
+  const bool same_pose = pose_ > 0 && pose_start_valid_ && samePose(sensor_pose, pose_start_);
   if (!same_pose) {
     ++pose_;
     pose_start_valid_ = finite;  // a pose that is not finite is never the same as another

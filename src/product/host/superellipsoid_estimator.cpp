@@ -279,13 +279,18 @@ std::shared_ptr<const ShapeTargets> SuperellipsoidEstimator::sharedViewTargets()
   return targets_;
 }
 
-void SuperellipsoidEstimator::reset() {
+std::unique_lock<std::mutex> SuperellipsoidEstimator::cancelRunningFit() {
   // A running fit returns at its next cluster instead of finishing; unless the estimator is
-  // being destroyed (cancelUpdate), fits resume after the reset.
+  // being destroyed (cancelUpdate), fits resume once the caller is done.
   ++resets_waiting_;
   cancel_ = true;
-  std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  std::unique_lock<std::mutex> fit_lock(fit_mutex_);
   if (--resets_waiting_ == 0 && !stopping_) cancel_ = false;
+  return fit_lock;
+}
+
+void SuperellipsoidEstimator::reset() {
+  const std::unique_lock<std::mutex> fit_lock = cancelRunningFit();
   std::lock_guard<std::mutex> map_lock(map_mutex_);
   std::lock_guard<std::mutex> pending_lock(pending_mutex_);
   std::lock_guard<std::mutex> lock(results_mutex_);
@@ -344,12 +349,8 @@ bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* erro
                std::to_string(params_.map.voxel_size) + " m";
     return false;
   }
-  // A fit running on the old map's surface would store and count fruits of a map that is gone:
-  // cancelled as a reset cancels it (it returns within one cluster's fit).
-  ++resets_waiting_;
-  cancel_ = true;
-  std::lock_guard<std::mutex> fit_lock(fit_mutex_);
-  if (--resets_waiting_ == 0 && !stopping_) cancel_ = false;
+  // A fit running on the old map's surface would store and count fruits of a map that is gone.
+  const std::unique_lock<std::mutex> fit_lock = cancelRunningFit();
   std::lock_guard<std::mutex> lock(map_mutex_);
   integratePending();  // into the map being replaced, as they came before the load
   map_ = std::move(loaded);

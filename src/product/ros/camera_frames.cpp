@@ -167,13 +167,6 @@ std::size_t CameraFrameBuffer::bytesLocked() const {
   return bytes;
 }
 
-namespace {
-bool near(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double move, double turn) {
-  return (a.translation() - b.translation()).norm() < move &&
-         Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() < turn;
-}
-}  // namespace
-
 CameraRest::Frame CameraRest::observe(const Eigen::Isometry3d& camera_pose, double stamp) {
   if (!camera_pose.matrix().allFinite() || !std::isfinite(stamp)) {
     resting_ = false;
@@ -181,7 +174,7 @@ CameraRest::Frame CameraRest::observe(const Eigen::Isometry3d& camera_pose, doub
   }
   const bool gap = stamp - last_stamp_ > kHold;  // frames not seen meanwhile: the arm may have moved
   last_stamp_ = stamp;
-  if (!resting_ || gap || !near(camera_pose, rest_pose_, kMove, kTurn) || stamp < rest_since_) {
+  if (!resting_ || gap || !posesWithin(camera_pose, rest_pose_, kMove, kTurn) || stamp < rest_since_) {
     rest_pose_ = camera_pose;
     rest_since_ = stamp;
     resting_ = true;
@@ -191,10 +184,8 @@ CameraRest::Frame CameraRest::observe(const Eigen::Isometry3d& camera_pose, doub
   if (decided_) return Frame::kTaken;
   if (stamp - rest_since_ < kHold) return Frame::kSettling;
   decided_ = true;
-  return have_planner_pose_ && near(camera_pose, planner_pose_, FruitSightingLog::kSamePoseMove,
-                                    FruitSightingLog::kSamePoseTurnDeg * M_PI / 180.0)
-             ? Frame::kPlannersPose
-             : Frame::kTake;
+  return have_planner_pose_ && FruitSightingLog::samePose(camera_pose, planner_pose_) ? Frame::kPlannersPose
+                                                                                       : Frame::kTake;
 }
 
 void CameraRest::plannerViewAt(const Eigen::Isometry3d& sensor_pose) {

@@ -179,7 +179,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   }
   std::vector<std::pair<std::string, std::string>> diagnostics() const override {
     check();
-    const host::EstimatorStatus s = estimator_->status();
+    const host::EstimatorStatus s = status();
     const double since = last_update_ > 0 ? ros::WallTime::now().toSec() - last_update_ : -1.0;
     const auto trust = medianTrust();
     return {{"planner views received since start", std::to_string(planner_views_)},
@@ -189,7 +189,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"views waiting for the map (integrated at the next update)", std::to_string(estimator_->pendingViews())},
             {"map blocks", std::to_string(s.blocks) + " of " + std::to_string(s.max_blocks)},
             {"map memory [MiB]", std::to_string(s.memory_mb)},
-            {"points skipped (NaN/Inf, range)", std::to_string(s.points_skipped + fruit_cloud_non_finite_)},
+            {"points skipped (NaN/Inf, range)", std::to_string(s.points_skipped)},
             {"rays outside the map", std::to_string(s.rays_outside)},
             {"rays over the memory budget", std::to_string(s.rays_over_budget)},
             {"fruits", std::to_string(s.fruits)},
@@ -535,12 +535,18 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     }
     return {medianText(std::move(hw)), medianText(std::move(r))};
   }
+  // The estimator's counters with what this plugin dropped before the estimator saw it.
+  host::EstimatorStatus status() const {
+    host::EstimatorStatus s = estimator_->status();
+    s.points_skipped += fruit_cloud_non_finite_;  // detector clouds' NaN/Inf, dropped on reading
+    return s;
+  }
   std::string totals() const {
-    const host::EstimatorStatus s = estimator_->status();
+    const host::EstimatorStatus s = status();
     char text[256];
     std::snprintf(text, sizeof(text),
                   "since start: %zu points skipped, %zu rays outside the map, %zu rays over the memory budget; "
-                  "%zu of %zu blocks, %.0f MiB", s.points_skipped + fruit_cloud_non_finite_, s.rays_outside, s.rays_over_budget, s.blocks,
+                  "%zu of %zu blocks, %.0f MiB", s.points_skipped, s.rays_outside, s.rays_over_budget, s.blocks,
                   s.max_blocks, s.memory_mb);
     return text;
   }
