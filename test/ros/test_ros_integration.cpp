@@ -761,6 +761,52 @@ TEST(FruitPublisher, CloudsRoundTripAndLyingHeadersAreRefused) {
   EXPECT_NE(err.find("big-endian"), std::string::npos) << err;
 }
 
+// The markers and clouds grow with the map (a mesh per fruit, the whole surface): with nobody
+// listening nothing is built; the first subscriber gets the latest state, built when it connects.
+TEST(FruitPublisher, BuildsMarkersAndCloudsOnlyForTopicsSomeoneListensTo) {
+  ros::NodeHandle nh("lazy_publisher");
+  ros_io::FruitPublisher publisher(nh, "world", "superellipsoids");
+  auto fruit = [](int id, double x) {
+    FruitEstimate f;
+    f.id = id;
+    f.accepted = true;
+    f.shape.a = f.shape.b = f.shape.c = 0.04;
+    f.shape.t = Eigen::Vector3d(x, 0, 0);
+    f.volume = f.shape.volume();
+    f.points = PointList{Eigen::Vector3d(x - 0.04, 0, 0), Eigen::Vector3d(x, -0.04, 0)};
+    f.missing_surface = PointList{Eigen::Vector3d(x + 0.04, 0, 0)};
+    return f;
+  };
+  std::atomic<int> arrays{0};
+  ros::Subscriber se = nh.subscribe<superellipsoid_msgs::SuperellipsoidArray>(
+      "superellipsoids", 4, [&](const superellipsoid_msgs::SuperellipsoidArray::ConstPtr&) { ++arrays; });
+  ASSERT_TRUE(waitFor([&] { return se.getNumPublishers() > 0; }, 10.0));
+  publisher.publish({fruit(1, 0.0)}, PointList{Eigen::Vector3d(0, 0, 0.04)}, ros::Time(1.0));
+  publisher.publish({fruit(1, 0.0), fruit(2, 0.2)}, PointList{Eigen::Vector3d(0, 0, 0.04)}, ros::Time(2.0));
+  ASSERT_TRUE(waitFor([&] { return arrays.load() == 2; }, 10.0));  // the superellipsoids always go out
+  EXPECT_EQ(publisher.visualsBuilt(), 0u);
+
+  visualization_msgs::MarkerArray markers;
+  int marker_messages = 0;
+  ros::Subscriber sub = nh.subscribe<visualization_msgs::MarkerArray>(
+      "fruit_markers", 4, [&](const visualization_msgs::MarkerArray::ConstPtr& m) {
+        markers = *m;
+        ++marker_messages;
+      });
+  ASSERT_TRUE(waitFor([&] { return marker_messages > 0; }, 10.0));
+  ros::WallDuration(0.3).sleep();
+  ros::spinOnce();
+  EXPECT_EQ(marker_messages, 1);
+  ASSERT_EQ(markers.markers.size(), 5u);  // DELETEALL, then a mesh and a label per fruit of the latest state
+  EXPECT_EQ(markers.markers[1].header.stamp, ros::Time(2.0));
+  EXPECT_EQ(publisher.visualsBuilt(), 1u);  // the markers only: the clouds still have no subscriber
+
+  publisher.publish({fruit(1, 0.0)}, PointList(), ros::Time(3.0));
+  ASSERT_TRUE(waitFor([&] { return marker_messages == 2; }, 10.0));
+  EXPECT_EQ(markers.markers.size(), 3u);
+  EXPECT_EQ(publisher.visualsBuilt(), 2u);
+}
+
 TEST(SurfaceCloudNode, SkipsBadCloudsAndFitsGoodOnes) {
   ros::NodeHandle nh;
   ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("/surface_cloud_node/surface_cloud", 1, true);

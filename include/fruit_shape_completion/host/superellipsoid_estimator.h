@@ -116,6 +116,8 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // Snapshots for display and tests: every fruit of the last update, accepted ones first.
   std::vector<FruitEstimate> estimates() const;
   PointList surface() const;
+  // The same surface as the map's blocks hold it: shares their points, nothing concatenated.
+  SurfaceBlocks surfaceBlocks() const;
   // The last view integrated into the map (a view waits for the next update()); its error
   // is the input stage's if that refused the view.
   IntegrationReport lastIntegration() const;

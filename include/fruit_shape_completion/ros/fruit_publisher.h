@@ -5,12 +5,14 @@
 // id/volume label), clusters (PointCloud2 coloured per fruit), missing_surface and tsdf_surface
 // (PointCloud2), all in the map frame and latched.
 #include <fruit_shape_completion/fruit_estimate.h>
+#include <fruit_shape_completion/surface_blocks.h>
 
 #include <ros/node_handle.h>
 #include <ros/publisher.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -29,14 +31,22 @@ bool fromCloud(const sensor_msgs::PointCloud2& msg, PointList* points, std::size
 bool fromRoiCloud(const sensor_msgs::PointCloud2& msg, const std::vector<std::int32_t>& indices, PointList* all,
                   PointList* selected, std::size_t* bad_indices, std::string* error);
 
+// The superellipsoids go out with every publish(). The markers and point clouds, which grow with
+// the map (a mesh per fruit, the whole surface), are built only for topics someone subscribes
+// to: at publish() if a subscriber is connected, else when the first one connects, from the
+// latest state. A planner run without rviz pays nothing for them.
 class FruitPublisher {
  public:
   FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic);
-  void publish(const std::vector<FruitEstimate>& fruits, const PointList& surface, const ros::Time& stamp);
+  void publish(std::vector<FruitEstimate> fruits, SurfaceBlocks surface, const ros::Time& stamp);
+  void publish(std::vector<FruitEstimate> fruits, PointList surface, const ros::Time& stamp);
+  // Marker and point cloud messages built so far.
+  std::size_t visualsBuilt() const;
 
  private:
-  std::string frame_;
-  ros::Publisher superellipsoids_, markers_, clusters_, missing_, surface_;
+  struct Visuals;  // the latest state and the topics built from it, shared with connect callbacks
+  ros::Publisher superellipsoids_;
+  std::shared_ptr<Visuals> visuals_;
 };
 
 }  // namespace ros_io

@@ -379,12 +379,12 @@ std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {
 }
 
 PointList SuperellipsoidEstimator::surface() const {
-  SurfaceBlocks blocks;
-  {
-    std::lock_guard<std::mutex> lock(results_mutex_);
-    blocks = surface_;  // shares the points; concatenated outside the lock
-  }
-  return blocks.cloud();
+  return surfaceBlocks().cloud();  // concatenated outside the lock
+}
+
+SurfaceBlocks SuperellipsoidEstimator::surfaceBlocks() const {
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  return surface_;  // shares the points
 }
 
 FruitInput SuperellipsoidEstimator::lastInput() const {

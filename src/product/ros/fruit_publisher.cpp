@@ -7,6 +7,7 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <cmath>
+#include <mutex>
 #include <cstring>
 #include <type_traits>
 #include <sstream>
@@ -159,58 +160,20 @@ void surfaceTriangles(const Superellipsoid& se, std::vector<geometry_msgs::Point
     }
 }
 
-}  // namespace
-
-FruitPublisher::FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic)
-    : frame_(map_frame) {
-  superellipsoids_ = nh.advertise<superellipsoid_msgs::SuperellipsoidArray>(superellipsoids_topic, 1, true);
-  markers_ = nh.advertise<visualization_msgs::MarkerArray>("fruit_markers", 1, true);
-  clusters_ = nh.advertise<sensor_msgs::PointCloud2>("clusters", 1, true);
-  missing_ = nh.advertise<sensor_msgs::PointCloud2>("missing_surface", 1, true);
-  surface_ = nh.advertise<sensor_msgs::PointCloud2>("tsdf_surface", 1, true);
-}
-
-void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const PointList& surface, const ros::Time& stamp) {
-  superellipsoid_msgs::SuperellipsoidArray arr;
-  arr.header.frame_id = frame_;
-  arr.header.stamp = stamp;
+visualization_msgs::MarkerArray fruitMarkers(const std::vector<FruitEstimate>& fruits, const std::string& frame,
+                                             const ros::Time& stamp) {
   visualization_msgs::MarkerArray markers;
   visualization_msgs::Marker clear;
   clear.action = visualization_msgs::Marker::DELETEALL;
   markers.markers.push_back(clear);
-  PointList cluster_points, missing;
-  std::vector<std::array<std::uint8_t, 3>> cluster_colors;
   for (const auto& f : fruits) {
-    const auto color = fruitColor(f.id);
-    for (const auto& p : f.points) {
-      cluster_points.push_back(p);
-      cluster_colors.push_back(color);
-    }
     if (!f.accepted) continue;
     const Superellipsoid& s = f.shape;
-    superellipsoid_msgs::Superellipsoid m;
-    m.header = arr.header;
-    m.id = static_cast<std::uint32_t>(std::max(f.id, 0));
-    m.object_tracking = true;
-    m.a = s.a;
-    m.b = s.b;
-    m.c = s.c;
-    m.e1 = s.e1;
-    m.e2 = s.e2;
-    m.tx = s.t.x();
-    m.ty = s.t.y();
-    m.tz = s.t.z();
-    constexpr double kDegrees = 180.0 / M_PI;  // the upstream message's unit
-    m.roll = s.rpy.x() * kDegrees;
-    m.pitch = s.rpy.y() * kDegrees;
-    m.yaw = s.rpy.z() * kDegrees;
-    m.volume = f.volume;
-    arr.superellipsoids.push_back(m);
-    missing.insert(missing.end(), f.missing_surface.begin(), f.missing_surface.end());
-
+    const auto color = fruitColor(f.id);
     auto marker = [&](const char* ns, int type) {
       visualization_msgs::Marker m;
-      m.header = arr.header;
+      m.header.frame_id = frame;
+      m.header.stamp = stamp;
       m.ns = ns;
       m.id = f.id;
       m.type = type;
@@ -239,11 +202,128 @@ void FruitPublisher::publish(const std::vector<FruitEstimate>& fruits, const Poi
     label.text = os.str();
     markers.markers.push_back(label);
   }
+  return markers;
+}
+
+// Every fruit's points, coloured per fruit (rejected fits' too: they show what was not fitted).
+sensor_msgs::PointCloud2 clusterCloud(const std::vector<FruitEstimate>& fruits, const std::string& frame,
+                                      const ros::Time& stamp) {
+  PointList points;
+  std::vector<std::array<std::uint8_t, 3>> colors;
+  for (const auto& f : fruits) {
+    const auto color = fruitColor(f.id);
+    points.insert(points.end(), f.points.begin(), f.points.end());
+    colors.insert(colors.end(), f.points.size(), color);
+  }
+  return toCloud(points, frame, stamp, colors);
+}
+
+sensor_msgs::PointCloud2 missingCloud(const std::vector<FruitEstimate>& fruits, const std::string& frame,
+                                      const ros::Time& stamp) {
+  PointList missing;
+  for (const auto& f : fruits)
+    if (f.accepted) missing.insert(missing.end(), f.missing_surface.begin(), f.missing_surface.end());
+  return toCloud(missing, frame, stamp);
+}
+
+}  // namespace
+
+struct FruitPublisher::Visuals {
+  enum Topic { kMarkers, kClusters, kMissing, kSurface, kTopics };
+  std::string frame;
+  std::array<ros::Publisher, kTopics> topics;
+
+  std::mutex mutex;  // publish() on the estimator's thread, connect callbacks on the spinner's
+  std::vector<FruitEstimate> fruits;
+  SurfaceBlocks surface;
+  ros::Time stamp;
+  std::array<bool, kTopics> stale{};  // the latest state is not yet built for this topic
+  std::size_t built = 0;
+
+  // Under `mutex`.
+  void send(int topic) {
+    stale[topic] = false;
+    ++built;
+    switch (topic) {
+      case kMarkers: topics[topic].publish(fruitMarkers(fruits, frame, stamp)); break;
+      case kClusters: topics[topic].publish(clusterCloud(fruits, frame, stamp)); break;
+      case kMissing: topics[topic].publish(missingCloud(fruits, frame, stamp)); break;
+      default: topics[topic].publish(toCloud(surface.cloud(), frame, stamp)); break;
+    }
+  }
+};
+
+FruitPublisher::FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic)
+    : visuals_(std::make_shared<Visuals>()) {
+  visuals_->frame = map_frame;
+  superellipsoids_ = nh.advertise<superellipsoid_msgs::SuperellipsoidArray>(superellipsoids_topic, 1, true);
+  const std::weak_ptr<Visuals> weak = visuals_;
+  auto advertise = [&](auto message, const char* name, int topic) {
+    // Queued on the node's callback queue, so it never runs inside publish(); the weak pointer
+    // lets a callback that outlives this publisher do nothing.
+    auto on_connect = [weak, topic](const ros::SingleSubscriberPublisher&) {
+      const std::shared_ptr<Visuals> v = weak.lock();
+      if (!v) return;
+      std::lock_guard<std::mutex> lock(v->mutex);
+      if (v->stale[topic]) v->send(topic);
+    };
+    visuals_->topics[topic] =
+        nh.advertise<decltype(message)>(name, 1, on_connect, ros::SubscriberStatusCallback(), ros::VoidConstPtr(), true);
+  };
+  advertise(visualization_msgs::MarkerArray(), "fruit_markers", Visuals::kMarkers);
+  advertise(sensor_msgs::PointCloud2(), "clusters", Visuals::kClusters);
+  advertise(sensor_msgs::PointCloud2(), "missing_surface", Visuals::kMissing);
+  advertise(sensor_msgs::PointCloud2(), "tsdf_surface", Visuals::kSurface);
+}
+
+void FruitPublisher::publish(std::vector<FruitEstimate> fruits, SurfaceBlocks surface, const ros::Time& stamp) {
+  superellipsoid_msgs::SuperellipsoidArray arr;
+  arr.header.frame_id = visuals_->frame;
+  arr.header.stamp = stamp;
+  for (const auto& f : fruits) {
+    if (!f.accepted) continue;
+    const Superellipsoid& s = f.shape;
+    superellipsoid_msgs::Superellipsoid m;
+    m.header = arr.header;
+    m.id = static_cast<std::uint32_t>(std::max(f.id, 0));
+    m.object_tracking = true;
+    m.a = s.a;
+    m.b = s.b;
+    m.c = s.c;
+    m.e1 = s.e1;
+    m.e2 = s.e2;
+    m.tx = s.t.x();
+    m.ty = s.t.y();
+    m.tz = s.t.z();
+    constexpr double kDegrees = 180.0 / M_PI;  // the upstream message's unit
+    m.roll = s.rpy.x() * kDegrees;
+    m.pitch = s.rpy.y() * kDegrees;
+    m.yaw = s.rpy.z() * kDegrees;
+    m.volume = f.volume;
+    arr.superellipsoids.push_back(m);
+  }
   superellipsoids_.publish(arr);
-  markers_.publish(markers);
-  clusters_.publish(toCloud(cluster_points, frame_, stamp, cluster_colors));
-  missing_.publish(toCloud(missing, frame_, stamp));
-  surface_.publish(toCloud(surface, frame_, stamp));
+
+  Visuals& v = *visuals_;
+  std::lock_guard<std::mutex> lock(v.mutex);
+  v.fruits = std::move(fruits);
+  v.surface = std::move(surface);
+  v.stamp = stamp;
+  for (int t = 0; t < Visuals::kTopics; ++t) {
+    if (v.topics[t].getNumSubscribers() > 0) v.send(t);
+    else v.stale[t] = true;
+  }
+}
+
+void FruitPublisher::publish(std::vector<FruitEstimate> fruits, PointList surface, const ros::Time& stamp) {
+  SurfaceBlocks blocks;
+  if (!surface.empty()) blocks.blocks.push_back({GridCell::Zero(), SharedPoints(std::move(surface))});
+  publish(std::move(fruits), std::move(blocks), stamp);
+}
+
+std::size_t FruitPublisher::visualsBuilt() const {
+  std::lock_guard<std::mutex> lock(visuals_->mutex);
+  return visuals_->built;
 }
 
 }  // namespace ros_io

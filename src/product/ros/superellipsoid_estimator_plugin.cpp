@@ -152,7 +152,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     std::shared_ptr<const std::vector<FruitEstimate>> results = estimator_->sharedFruits();
     if (results == published_) return;
     published_ = std::move(results);
-    publisher_->publish(estimator_->estimates(), estimator_->surface(), ros::Time::now());
+    publisher_->publish(estimator_->estimates(), estimator_->surfaceBlocks(), ros::Time::now());
   }
   void cancelUpdate() override {
     if (estimator_) estimator_->cancelUpdate();
@@ -171,7 +171,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     if (camera_buffer_) camera_buffer_->clear();
     std::lock_guard<std::mutex> lock(publish_mutex_);
     estimator_->reset();
-    publisher_->publish({}, {}, ros::Time::now());
+    publisher_->publish({}, SurfaceBlocks(), ros::Time::now());
     published_ = estimator_->sharedFruits();  // the cleared results, published just now
     fruit_cloud_non_finite_ = 0;  // counted since start or reset, as the estimator's counters
     std::lock_guard<std::mutex> still_lock(still_mutex_);

@@ -60,8 +60,9 @@ int main(int argc, char** argv) {
       }
     }
     const auto& fruits = pipeline->update(pts);
-    publisher.publish(fruits, pts, msg->header.stamp);
-    ROS_INFO("surface cloud: %zu points, %d clusters, %d fruits accepted (%.1f ms)", pts.size(),
+    const std::size_t points = pts.size();
+    publisher.publish(fruits, std::move(pts), msg->header.stamp);
+    ROS_INFO("surface cloud: %zu points, %d clusters, %d fruits accepted (%.1f ms)", points,
              pipeline->lastStats().clusters, pipeline->lastStats().accepted, pipeline->lastStats().seconds * 1000);
   };
   ros::Subscriber sub = pnh.subscribe<sensor_msgs::PointCloud2>("surface_cloud", 2, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
