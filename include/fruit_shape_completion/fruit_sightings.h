@@ -8,6 +8,8 @@
 // Frames from one camera pose are one view: upstream's planner inserts every frame while the arm
 // stands still (insert_scan_if_not_moved, on by default), and a fruit seen from one place would
 // count as seen in many, its interval narrowed as if many views' depth errors averaged out.
+// A saved map carries its fruits' counts (CarriedSightings): the map fused those views, and a
+// fruit of a loaded map is as pinned down as it was when saved, not as if seen once.
 #include <fruit_shape_completion/fruit_report.h>
 
 #include <Eigen/Geometry>
@@ -16,12 +18,24 @@
 #include <deque>
 #include <map>
 #include <set>
+#include <string>
+#include <vector>
 
 namespace fruit_shape_completion {
 
 // Whether two camera poses lie within `move` [m] and `turn` [rad] of each other (false if either
 // is not finite).
 bool posesWithin(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double move, double turn);
+
+// A fruit's centre and the views that had seen it, kept with a saved map.
+struct CarriedSightings {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  FruitSightings seen;
+};
+// The records as bytes appended after a map file, and read back; false with a message if the
+// bytes are not such records (empty bytes: none, true).
+void appendCarriedSightings(const std::vector<CarriedSightings>& carried, std::string* bytes);
+bool readCarriedSightings(const std::string& bytes, std::vector<CarriedSightings>* carried, std::string* error);
 
 class FruitSightingLog {
  public:
@@ -36,6 +50,13 @@ class FruitSightingLog {
   void addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose);
   void update(const std::vector<FruitEstimate>& fruits);
   const std::map<int, FruitSightings>& sightings() const { return sightings_; }
+  // Clears the log (as clear()) and keeps a loaded map's records: a fruit fitted for the first
+  // time within kCarryRadius of a record's centre starts from its counts (the nearest record,
+  // each used once).
+  void carryOver(std::vector<CarriedSightings> carried);
+  static constexpr double kCarryRadius = 0.02;  // [m]
+  // For a save: the counts of `fruits` (the last update's) and the records no fruit claimed yet.
+  std::vector<CarriedSightings> carried(const std::vector<FruitEstimate>& fruits) const;
   void clear();
 
  private:
@@ -48,6 +69,7 @@ class FruitSightingLog {
     Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
   };
   static bool saw(const View& view, const FruitEstimate& fruit);
+  FruitSightings claimCarried(const FruitEstimate& fruit);
   void record(const View& view, int fruit_id, FruitSightings* s);
   std::size_t kept_views_, points_per_view_;
   std::uint64_t pose_ = 0;  // the current pose's number; 0: none yet
@@ -56,6 +78,7 @@ class FruitSightingLog {
   std::map<int, std::uint64_t> last_pose_;  // per fruit, the pose it was last counted from
   std::deque<View> pending_, kept_;  // not yet matched; matched (the newest kept_views_)
   std::map<int, FruitSightings> sightings_;
+  std::vector<CarriedSightings> unclaimed_;  // a loaded map's records no fruit has claimed
 };
 
 }  // namespace fruit_shape_completion

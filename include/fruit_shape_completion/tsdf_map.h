@@ -156,7 +156,10 @@ class TsdfMap {
   bool save(const std::string& path, std::string* error) const;
   // The file's bytes (for a caller that copies under a lock and writes outside it).
   void serialize(std::string* bytes) const;
-  bool load(const std::string& path, std::string* error);
+  // `rest`, if given, receives the file's bytes after the map (at most kMaxRestBytes + 1): where a
+  // host keeps its own records beside the map, which readers of the map alone skip.
+  bool load(const std::string& path, std::string* error, std::string* rest = nullptr);
+  static constexpr std::size_t kMaxRestBytes = std::size_t(16) << 20;
 
  private:
   std::uint64_t blockKeyOf(const VoxelIndex& block_origin) const;

@@ -33,8 +33,9 @@ bool fromRoiCloud(const sensor_msgs::PointCloud2& msg, const std::vector<std::in
 
 // The superellipsoids go out with every publish(). The markers and point clouds, which grow with
 // the map (a mesh per fruit, the whole surface), are built only for topics someone subscribes
-// to: at publish() if a subscriber is connected, else when the first one connects, from the
-// latest state. A planner run without rviz pays nothing for them.
+// to: at publish() if a subscriber is connected, else when the first one connects (on the ROS
+// callback thread that reports it), from the latest state, which is kept (its points shared
+// with the estimator's results). A planner run without rviz builds none of them.
 class FruitPublisher {
  public:
   FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace fruit_shape_completion {
 
@@ -49,6 +50,67 @@ void FruitSightingLog::addView(double time, const PointList& fruit_points, const
   while (pending_.size() > kept_views_) pending_.pop_front();
 }
 
+namespace {
+
+constexpr char kCarriedMagic[8] = {'F', 'S', 'C', 'V', 'I', 'E', 'W', '1'};
+constexpr std::size_t kCarriedRecordBytes = 3 * 8 + 4 + 2 * 8;
+
+}  // namespace
+
+void appendCarriedSightings(const std::vector<CarriedSightings>& carried, std::string* bytes) {
+  auto put = [bytes](const void* p, std::size_t n) { bytes->append(static_cast<const char*>(p), n); };
+  const std::uint64_t count = carried.size();
+  put(kCarriedMagic, 8);
+  put(&count, 8);
+  for (const auto& c : carried) {
+    const double xyz[3] = {c.center.x(), c.center.y(), c.center.z()};
+    const std::int32_t views = c.seen.views;
+    put(xyz, sizeof(xyz));
+    put(&views, 4);
+    put(&c.seen.first_seen, 8);
+    put(&c.seen.last_seen, 8);
+  }
+}
+
+bool readCarriedSightings(const std::string& bytes, std::vector<CarriedSightings>* carried, std::string* error) {
+  carried->clear();
+  if (bytes.empty()) return true;  // a map saved without them
+  std::size_t at = 0;
+  auto get = [&](void* p, std::size_t n) {
+    if (bytes.size() - at < n) return false;
+    std::memcpy(p, bytes.data() + at, n);
+    at += n;
+    return true;
+  };
+  char magic[8];
+  std::uint64_t count = 0;
+  if (!get(magic, 8) || std::memcmp(magic, kCarriedMagic, 8) != 0 || !get(&count, 8)) {
+    *error = "the bytes after the map are not the fruits' view counts";
+    return false;
+  }
+  if (count != (bytes.size() - at) / kCarriedRecordBytes || (bytes.size() - at) % kCarriedRecordBytes != 0) {
+    *error = "the fruits' view counts are truncated or followed by other bytes";
+    return false;
+  }
+  std::vector<CarriedSightings> out(count);
+  for (auto& c : out) {
+    double xyz[3];
+    std::int32_t views = 0;
+    get(xyz, sizeof(xyz));
+    get(&views, 4);
+    get(&c.seen.first_seen, 8);
+    get(&c.seen.last_seen, 8);
+    c.center = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
+    c.seen.views = views;
+    if (!c.center.allFinite() || views <= 0) {
+      *error = "a fruit's view count record is not finite or counts no view";
+      return false;
+    }
+  }
+  *carried = std::move(out);
+  return true;
+}
+
 bool FruitSightingLog::saw(const View& view, const FruitEstimate& fruit) {
   const double reach = std::max({fruit.shape.a, fruit.shape.b, fruit.shape.c}) + 0.01;
   if (view.points.empty() || !fruit.shape.t.allFinite() ||
@@ -71,12 +133,28 @@ void FruitSightingLog::record(const View& view, int fruit_id, FruitSightings* s)
   if (!(s->last_seen >= view.last_time)) s->last_seen = view.last_time;
 }
 
+FruitSightings FruitSightingLog::claimCarried(const FruitEstimate& fruit) {
+  auto best = unclaimed_.end();
+  double best_d = kCarryRadius;
+  for (auto it = unclaimed_.begin(); it != unclaimed_.end(); ++it) {
+    const double d = (it->center - fruit.shape.t).norm();
+    if (d <= best_d) {
+      best_d = d;
+      best = it;
+    }
+  }
+  if (best == unclaimed_.end()) return FruitSightings();
+  const FruitSightings seen = best->seen;
+  unclaimed_.erase(best);
+  return seen;
+}
+
 void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits) {
   for (const auto& f : fruits) {
     if (!f.accepted) continue;
     auto it = sightings_.find(f.id);
     if (it == sightings_.end()) {  // new: the views that found it may already be matched
-      it = sightings_.emplace(f.id, FruitSightings()).first;
+      it = sightings_.emplace(f.id, claimCarried(f)).first;
       for (const auto& v : kept_)
         if (saw(v, f)) record(v, f.id, &it->second);
     }
@@ -88,7 +166,23 @@ void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits) {
   while (kept_.size() > kept_views_) kept_.pop_front();
 }
 
+void FruitSightingLog::carryOver(std::vector<CarriedSightings> carried) {
+  clear();
+  unclaimed_ = std::move(carried);
+}
+
+std::vector<CarriedSightings> FruitSightingLog::carried(const std::vector<FruitEstimate>& fruits) const {
+  std::vector<CarriedSightings> out = unclaimed_;
+  for (const auto& f : fruits) {
+    const auto it = sightings_.find(f.id);
+    if (!f.accepted || it == sightings_.end() || it->second.views <= 0 || !f.shape.t.allFinite()) continue;
+    out.push_back(CarriedSightings{f.shape.t, it->second});
+  }
+  return out;
+}
+
 void FruitSightingLog::clear() {
+  unclaimed_.clear();
   pending_.clear();
   kept_.clear();
   sightings_.clear();

@@ -213,7 +213,7 @@ bool TsdfMap::save(const std::string& path, std::string* error) const {
   return writeFileAtomically(path, bytes, error);
 }
 
-bool TsdfMap::load(const std::string& path, std::string* error) {
+bool TsdfMap::load(const std::string& path, std::string* error, std::string* rest) {
   auto fail = [&](const std::string& what) {
     if (error) *error = path + ": " + what;
     return false;
@@ -262,6 +262,11 @@ bool TsdfMap::load(const std::string& path, std::string* error) {
         const VoxelIndex g(origin[0] + idx % vps, origin[1] + (idx / vps) % vps, origin[2] + idx / (vps * vps));
         if (!loaded.setVoxel(g, v)) return fail("voxel outside the crop box or block limit");
       }
+    }
+    if (rest) {
+      rest->assign(kMaxRestBytes + 1, '\0');
+      in.read(&(*rest)[0], static_cast<std::streamsize>(rest->size()));
+      rest->resize(static_cast<std::size_t>(in.gcount()));
     }
     resetLog();
     blocks_.swap(loaded.blocks_);

@@ -241,8 +241,8 @@ void SuperellipsoidEstimator::update() {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
     sightings_.update(accepted);
     // Counted views: a fruit seen in few keeps their depth errors, and its interval says so
-    // (volume_interval.h). One the log matched no view to (a loaded map's, until a view sees it)
-    // reads as seen in one.
+    // (volume_interval.h). One the log matched no view to (a loaded map's fruit the saved
+    // counts did not cover, until a view sees it) reads as seen in one.
     const std::map<int, FruitSightings>& seen = sightings_.sightings();
     for (auto& f : accepted) {
       const auto it = seen.find(f.id);
@@ -336,13 +336,29 @@ bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* erro
     integratePending();
     map_.serialize(&bytes);
   }
+  // The last update's fruits with their view counts, after the map (views integrated since are
+  // in the map but matched to no fruit yet: they count from the load on).
+  const std::shared_ptr<const std::vector<FruitEstimate>> fruits = sharedFruits();
+  std::vector<CarriedSightings> carried;
+  {
+    std::lock_guard<std::mutex> lock(sightings_mutex_);
+    carried = sightings_.carried(*fruits);
+  }
+  appendCarriedSightings(carried, &bytes);
   return writeFileAtomically(path, bytes, error);
 }
 
 bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* error, std::string* warning) {
   removeStale(path, warning);
   TsdfMap loaded(params_.map);  // read outside the lock: the map keeps taking views meanwhile
-  if (!loaded.load(path, error)) return false;
+  std::string rest;
+  if (!loaded.load(path, error, &rest)) return false;
+  std::vector<CarriedSightings> carried;
+  std::string carried_error;
+  if (!readCarriedSightings(rest, &carried, &carried_error) && warning) {
+    *warning += std::string(warning->empty() ? "" : "; ") + path + ": " + carried_error +
+                "; the map is loaded and its fruits count views from the load on";
+  }
   if (loaded.params().voxel_size != params_.map.voxel_size) {
     if (error)
       *error = path + ": voxel size " + std::to_string(loaded.params().voxel_size) + " m differs from the map's " +
@@ -355,9 +371,9 @@ bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* erro
   integratePending();  // into the map being replaced, as they came before the load
   map_ = std::move(loaded);
   dirty_ = true;  // the next update() fits the loaded map
-  // A saved map holds no views: its fruits count the views from the load on.
+  // Its fruits count the views the saved map had fused, and those from the load on.
   std::lock_guard<std::mutex> sightings_lock(sightings_mutex_);
-  sightings_.clear();
+  sightings_.carryOver(std::move(carried));
   return true;
 }
 

@@ -6,7 +6,9 @@
 #include <pcl_conversions/pcl_conversions.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <boost/make_shared.hpp>
 #include <cmath>
+#include <functional>
 #include <mutex>
 #include <cstring>
 #include <type_traits>
@@ -230,25 +232,75 @@ sensor_msgs::PointCloud2 missingCloud(const std::vector<FruitEstimate>& fruits, 
 
 struct FruitPublisher::Visuals {
   enum Topic { kMarkers, kClusters, kMissing, kSurface, kTopics };
+  struct State {
+    std::vector<FruitEstimate> fruits;  // their points are shared, not copied
+    SurfaceBlocks surface;
+    ros::Time stamp;
+  };
   std::string frame;
   std::array<ros::Publisher, kTopics> topics;
 
-  std::mutex mutex;  // publish() on the estimator's thread, connect callbacks on the spinner's
-  std::vector<FruitEstimate> fruits;
-  SurfaceBlocks surface;
-  ros::Time stamp;
-  std::array<bool, kTopics> stale{};  // the latest state is not yet built for this topic
-  std::size_t built = 0;
+  // publish() on the estimator's thread, connect callbacks on the spinner's. Never held while a
+  // message is built: a build can take long on a row, and a reset waits for publish().
+  std::mutex mutex;
+  std::shared_ptr<const State> state = std::make_shared<const State>();
+  std::array<bool, kTopics> stale{};  // the latest state is not yet published on this topic
+  std::size_t built = 0, failed = 0;
 
-  // Under `mutex`.
-  void send(int topic) {
-    stale[topic] = false;
-    ++built;
+  // The topic's message from `s`, and how to send it.
+  std::function<void()> build(int topic, const State& s) const {
+    const ros::Publisher& pub = topics[topic];
     switch (topic) {
-      case kMarkers: topics[topic].publish(fruitMarkers(fruits, frame, stamp)); break;
-      case kClusters: topics[topic].publish(clusterCloud(fruits, frame, stamp)); break;
-      case kMissing: topics[topic].publish(missingCloud(fruits, frame, stamp)); break;
-      default: topics[topic].publish(toCloud(surface.cloud(), frame, stamp)); break;
+      case kMarkers: {
+        auto m = boost::make_shared<visualization_msgs::MarkerArray>(fruitMarkers(s.fruits, frame, s.stamp));
+        return [pub, m] { pub.publish(m); };
+      }
+      case kClusters: {
+        auto m = boost::make_shared<sensor_msgs::PointCloud2>(clusterCloud(s.fruits, frame, s.stamp));
+        return [pub, m] { pub.publish(m); };
+      }
+      case kMissing: {
+        auto m = boost::make_shared<sensor_msgs::PointCloud2>(missingCloud(s.fruits, frame, s.stamp));
+        return [pub, m] { pub.publish(m); };
+      }
+      default: {
+        auto m = boost::make_shared<sensor_msgs::PointCloud2>(toCloud(s.surface.cloud(), frame, s.stamp));
+        return [pub, m] { pub.publish(m); };
+      }
+    }
+  }
+
+  // Publishes the latest state on `topic` if it is not yet: built outside the lock, sent only if
+  // no newer state came meanwhile (then built again from that). A build that fails (out of
+  // memory on a large map) leaves the topic stale for the next update or subscriber to retry.
+  void bringUpToDate(int topic) {
+    for (int attempt = 0; attempt < 3; ++attempt) {
+      std::shared_ptr<const State> s;
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!stale[topic]) return;
+        s = state;
+      }
+      std::function<void()> send;
+      try {
+        send = build(topic, *s);
+      } catch (const std::exception& e) {
+        std::size_t n = 0;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          n = ++failed;
+        }
+        ROS_WARN_THROTTLE(10.0, "%s not published: %s (%zu failed so far; the next update tries again)",
+                          topics[topic].getTopic().c_str(), e.what(), n);
+        return;
+      }
+      std::lock_guard<std::mutex> lock(mutex);
+      if (s != state) continue;
+      if (!stale[topic]) return;  // a concurrent caller sent this state already
+      send();
+      stale[topic] = false;
+      ++built;
+      return;
     }
   }
 };
@@ -262,10 +314,7 @@ FruitPublisher::FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame
     // Queued on the node's callback queue, so it never runs inside publish(); the weak pointer
     // lets a callback that outlives this publisher do nothing.
     auto on_connect = [weak, topic](const ros::SingleSubscriberPublisher&) {
-      const std::shared_ptr<Visuals> v = weak.lock();
-      if (!v) return;
-      std::lock_guard<std::mutex> lock(v->mutex);
-      if (v->stale[topic]) v->send(topic);
+      if (const std::shared_ptr<Visuals> v = weak.lock()) v->bringUpToDate(topic);
     };
     visuals_->topics[topic] =
         nh.advertise<decltype(message)>(name, 1, on_connect, ros::SubscriberStatusCallback(), ros::VoidConstPtr(), true);
@@ -305,14 +354,17 @@ void FruitPublisher::publish(std::vector<FruitEstimate> fruits, SurfaceBlocks su
   superellipsoids_.publish(arr);
 
   Visuals& v = *visuals_;
-  std::lock_guard<std::mutex> lock(v.mutex);
-  v.fruits = std::move(fruits);
-  v.surface = std::move(surface);
-  v.stamp = stamp;
-  for (int t = 0; t < Visuals::kTopics; ++t) {
-    if (v.topics[t].getNumSubscribers() > 0) v.send(t);
-    else v.stale[t] = true;
+  {
+    auto state = std::make_shared<Visuals::State>();
+    state->fruits = std::move(fruits);
+    state->surface = std::move(surface);
+    state->stamp = stamp;
+    std::lock_guard<std::mutex> lock(v.mutex);
+    v.state = std::move(state);
+    v.stale.fill(true);
   }
+  for (int t = 0; t < Visuals::kTopics; ++t)
+    if (v.topics[t].getNumSubscribers() > 0) v.bringUpToDate(t);
 }
 
 void FruitPublisher::publish(std::vector<FruitEstimate> fruits, PointList surface, const ros::Time& stamp) {
