@@ -724,6 +724,14 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
     EXPECT_NE(std::string(e.what()).find("cluster_tolerance"), std::string::npos) << e.what();  // valid keys listed
   }
   bad.deleteParam("shape/alpah");
+  bad.setParam("shape/red_min_hue", 40);  // above red_max_hue: no pixel would pass, nothing mapped
+  try {
+    loader.load(bad, "world");
+    FAIL() << "a reversed red band must throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("red_max_hue"), std::string::npos) << e.what();
+  }
+  bad.deleteParam("shape/red_min_hue");
   bad.setParam("shape/fruit_cloud_topic", 3);  // a topic must be a string
   try {
     loader.load(bad, "world");

@@ -19,6 +19,10 @@ std::string OrganizedFrame::problem() const {
 }
 
 void FruitInputParams::validate() const {
+  // An empty band would pass no pixel: every view would map nothing, with no other sign.
+  if (red_test.min_hue > red_test.max_hue)
+    throw std::invalid_argument("red_min_hue (" + std::to_string(red_test.min_hue) + ") must not exceed red_max_hue (" +
+                                std::to_string(red_test.max_hue) + ")");
   depth_edges.validate();
   try {
     outliers.validate();

@@ -45,10 +45,6 @@ EstimatorLiveParams SuperellipsoidEstimator::liveParams() const {
 
 void SuperellipsoidEstimator::setLiveParams(const EstimatorLiveParams& live) {
   live.input.validate();
-  const HsiRedTest& red = live.input.red_test;
-  if (red.min_hue > red.max_hue)
-    throw std::invalid_argument("red_min_hue (" + std::to_string(red.min_hue) + ") must not exceed red_max_hue (" +
-                                std::to_string(red.max_hue) + ")");
   live.targets.validate();
   pipelineWith(live).validate();
   auto stage = std::make_shared<const FruitInputStage>(live.input);
