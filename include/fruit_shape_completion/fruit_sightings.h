@@ -35,6 +35,7 @@ struct CarriedSightings {
 // The records as bytes appended after a map file, and read back; false with a message if the
 // bytes are not such records (empty bytes: none, true).
 void appendCarriedSightings(const std::vector<CarriedSightings>& carried, std::string* bytes);
+constexpr int kMaxCarriedViews = 1000000;  // a count above this is no file this package wrote
 bool readCarriedSightings(const std::string& bytes, std::vector<CarriedSightings>* carried, std::string* error);
 
 class FruitSightingLog {
@@ -50,13 +51,14 @@ class FruitSightingLog {
   void addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose);
   void update(const std::vector<FruitEstimate>& fruits);
   const std::map<int, FruitSightings>& sightings() const { return sightings_; }
-  // Clears the log (as clear()) and keeps a loaded map's records: a fruit fitted for the first
-  // time within kCarryRadius of a record's centre starts from its counts (the nearest record,
-  // each used once).
+  // Clears the log (as clear()) and keeps a loaded map's records: fruits fitted for the first
+  // time start from the counts of the records within kCarryRadius of their centres (nearest
+  // pairs first, each record used once).
   void carryOver(std::vector<CarriedSightings> carried);
   static constexpr double kCarryRadius = 0.02;  // [m]
-  // For a save: the counts of `fruits` (the last update's) and the records no fruit claimed yet.
-  std::vector<CarriedSightings> carried(const std::vector<FruitEstimate>& fruits) const;
+  // For a save: every counted fruit at its last accepted centre (also one not accepted in the
+  // last update), and the records no fruit has claimed yet.
+  std::vector<CarriedSightings> carried() const;
   void clear();
 
  private:
@@ -69,7 +71,7 @@ class FruitSightingLog {
     Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
   };
   static bool saw(const View& view, const FruitEstimate& fruit);
-  FruitSightings claimCarried(const FruitEstimate& fruit);
+  void claimCarried(const std::vector<const FruitEstimate*>& fresh);
   void record(const View& view, int fruit_id, FruitSightings* s);
   std::size_t kept_views_, points_per_view_;
   std::uint64_t pose_ = 0;  // the current pose's number; 0: none yet
@@ -79,6 +81,7 @@ class FruitSightingLog {
   std::deque<View> pending_, kept_;  // not yet matched; matched (the newest kept_views_)
   std::map<int, FruitSightings> sightings_;
   std::vector<CarriedSightings> unclaimed_;  // a loaded map's records no fruit has claimed
+  std::map<int, Eigen::Vector3d> centers_;    // per fruit, its last accepted centre
 };
 
 }  // namespace fruit_shape_completion

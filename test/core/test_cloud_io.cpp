@@ -1,6 +1,8 @@
 #include <fruit_shape_completion/instrument/cloud_io.h>
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
+
+#include <random>
 #include <nlohmann/json.hpp>
 
 #include <sys/wait.h>
@@ -150,6 +152,20 @@ TEST(CloudIo, PcdAsciiAndMalformedFiles) {
   const CloudFile lone_blue = readPointCloud(bad_ply);
   EXPECT_FALSE(lone_blue.ok());
   EXPECT_NE(lone_blue.error.find("colour"), std::string::npos) << lone_blue.error;
+  // A small binary file whose header promises a million vertices of ten doubles: PCL would
+  // allocate 80 MB for it before finding the data short; refused from its size first.
+  std::string wide = "ply\nformat binary_little_endian 1.0\nelement vertex 1000000\n";
+  for (const char* name : {"x", "y", "z", "a", "b", "c", "d", "e", "f", "g"}) wide += std::string("property double ") + name + "\n";
+  writeFile(bad_ply, wide + "end_header\n" + std::string(4000000, '\0'));
+  const CloudFile short_binary = readPointCloud(bad_ply);
+  EXPECT_FALSE(short_binary.ok());
+  EXPECT_NE(short_binary.error.find("truncated"), std::string::npos) << short_binary.error;
+  // PCL's ascii reader makes NaN of what it cannot parse: decimal commas are named instead.
+  writeFile(bad_ply, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+                     "end_header\n0,1 0,2 0,3\n0,2 0,2 0,3\n");
+  const CloudFile commas = readPointCloud(bad_ply);
+  EXPECT_FALSE(commas.ok());
+  EXPECT_NE(commas.error.find("decimal commas"), std::string::npos) << commas.error;
   std::remove(bad_ply.c_str());
 }
 
@@ -281,6 +297,32 @@ TEST(FitCloudTool, JsonOutputMatchesTheFruitInTheFile) {
   for (const auto& p : s.points) EXPECT_LT(truth.radialDistance(p), 0.004);
   std::remove(input.c_str());
   std::remove(surface.c_str());
+}
+
+// --voxel thins clouds that PCL's single-precision grid would not: a clump far from the origin
+// (georeferenced coordinates) keeps its place to within a leaf, and a cloud spanning more
+// voxels than an int counts (PCL then returns it unthinned) is thinned in slabs.
+TEST(FitCloudTool, ThinningWorksFarFromTheOriginAndOverLargeExtents) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(0.0, 0.0025);
+  const Eigen::Vector3d far_away(312345.678, 5678901.234, 101.5);
+  PointList clump;
+  for (int i = 0; i < 1000; ++i) clump.push_back(far_away + Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  PointList thinned = thinCloud(clump, 0.003);
+  ASSERT_GE(thinned.size(), 1u);
+  EXPECT_LE(thinned.size(), 8u);
+  for (const auto& p : thinned) EXPECT_LT((p - far_away).norm(), 0.006) << p.transpose();
+  // 12 x 12 x 3 m at 3 mm: 1.6e10 voxels. Two clumps at opposite corners, and a NaN.
+  PointList wide;
+  for (int i = 0; i < 1000; ++i) {
+    wide.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)));
+    wide.push_back(Eigen::Vector3d(12.0, 12.0, 3.0) + Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  }
+  wide.push_back(Eigen::Vector3d(std::nan(""), 0, 0));
+  thinned = thinCloud(wide, 0.003);
+  EXPECT_GE(thinned.size(), 2u);
+  EXPECT_LE(thinned.size(), 16u);
+  for (const auto& p : thinned) EXPECT_TRUE(p.norm() < 0.01 || (p - Eigen::Vector3d(12, 12, 3)).norm() < 0.01) << p.transpose();
 }
 
 TEST(FitCloudTool, ADenseRawViewIsTooLargeAClusterUnlessThinned) {

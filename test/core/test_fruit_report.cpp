@@ -243,14 +243,36 @@ TEST(FruitSightings, ALoadedMapsFruitsStartFromTheNearestSavedCounts) {
   EXPECT_DOUBLE_EQ(log.sightings().at(7).first_seen, 1.0);
   EXPECT_DOUBLE_EQ(log.sightings().at(7).last_seen, 20.0);
   EXPECT_EQ(log.sightings().at(8).views, 0);
-  // Saved again: fruit 7's counts and the record no fruit claimed.
-  const std::vector<CarriedSightings> again = log.carried({a, far});
-  ASSERT_EQ(again.size(), 2u);
-  int views = 0;
-  for (const auto& c : again) views += c.seen.views;
-  EXPECT_EQ(views, 6 + 2);
+  // Saved again: fruit 7's counts and the record no fruit claimed; still so when fruit 7 was
+  // not accepted in the last update (a leaf grown into its cluster): its counts stay.
+  for (const bool accepted : {true, false}) {
+    FruitEstimate a_now = a;
+    a_now.accepted = accepted;
+    log.update({a_now, far});
+    const std::vector<CarriedSightings> again = log.carried();
+    int views = 0, at_a = 0;
+    for (const auto& c : again) {
+      views += c.seen.views;
+      at_a += (c.center - a.shape.t).norm() < 1e-9 ? 1 : 0;
+    }
+    EXPECT_EQ(views, 6 + 2);
+    EXPECT_EQ(at_a, 1);
+  }
+  // A fragment fitted beside a fruit does not take the fruit's record: nearest pairs first.
+  FruitSightingLog pairs(8, 64);
+  pairs.carryOver({{Eigen::Vector3d(0, 0, 0.5), five}});
+  const FruitEstimate fragment = fruit(1, {0.015, 0, 0.5}, 0.02), whole = fruit(2, {0.002, 0, 0.5}, 0.04);
+  pairs.update({fragment, whole});
+  EXPECT_EQ(pairs.sightings().at(2).views, 5);
+  EXPECT_EQ(pairs.sightings().at(1).views, 0);
   log.clear();
-  EXPECT_TRUE(log.carried({a}).empty());
+  EXPECT_TRUE(log.carried().empty());
+  // A count a saved map could not hold is refused, not carried into the log.
+  std::string hostile;
+  FruitSightings huge = five;
+  huge.views = kMaxCarriedViews + 1;
+  appendCarriedSightings({{Eigen::Vector3d(0, 0, 0.5), huge}}, &hostile);
+  EXPECT_FALSE(readCarriedSightings(hostile, &read, &error));
 }
 
 TEST(AtomicFile, AKilledSavesTemporaryIsRemovedOnceOldAndOthersAreLeftAlone) {

@@ -7,6 +7,7 @@
 #include <fruit_shape_completion/instrument/sim/synthetic_fruit.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <functional>
@@ -20,6 +21,7 @@
 #include <chrono>
 #include <mutex>
 #include <limits>
+#include <sstream>
 #include <thread>
 #include <unistd.h>
 
@@ -493,6 +495,24 @@ TEST(SuperellipsoidEstimator, FramesFromOnePoseCountOnceAndViewsWithoutFruitAreN
     std::ifstream in(path, std::ios::binary);
     bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   }
+  {  // map_tool's export of the saved map counts the same views
+    const char* dir = std::getenv("FSC_BIN_DIR");
+    const std::string csv = (std::filesystem::temp_directory_path() / "fsc_test_views_load.csv").string();
+    const std::string cmd =
+        std::string(dir ? dir : ".") + "/map_tool --map " + path + " --export-fruits " + csv + " 2>/dev/null";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    std::ifstream in(csv);
+    std::string header, row, cell;
+    ASSERT_TRUE(std::getline(in, header) && std::getline(in, row)) << csv;
+    std::vector<std::string> names, cells;
+    for (std::istringstream h(header); std::getline(h, cell, ',');) names.push_back(cell);
+    for (std::istringstream r(row); std::getline(r, cell, ',');) cells.push_back(cell);
+    const auto views = std::find(names.begin(), names.end(), "views");
+    ASSERT_NE(views, names.end());
+    ASSERT_EQ(cells.size(), names.size());
+    EXPECT_EQ(cells[views - names.begin()], "3");
+    std::filesystem::remove(csv);
+  }
   SuperellipsoidEstimator loaded;
   {  // saved again before any update: the counts no fruit has claimed yet are kept
     SuperellipsoidEstimator relay;
@@ -514,7 +534,7 @@ TEST(SuperellipsoidEstimator, FramesFromOnePoseCountOnceAndViewsWithoutFruitAreN
   loaded.update();
   ASSERT_EQ(loaded.fruits().size(), 1u);
   EXPECT_EQ(loaded.fruits()[0].views, 4);
-  // A map file without the counts (map_tool's, an older version's) loads with its fruit read as
+  // A map file without the counts (demo_mapping's, an older version's) loads with its fruit read as
   // seen in one until views see it; counts that do not parse leave the map loaded, with a warning.
   const std::size_t records = 16 + 44;  // the section's header and one fruit's record
   ASSERT_GT(bytes.size(), records);

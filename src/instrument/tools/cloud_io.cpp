@@ -227,14 +227,40 @@ CloudFile readPcd(const std::string& path) {
   return pointsOf(blob, path);
 }
 
+// "0,5 0,2 0,3": whitespace-separated columns whose numbers hold a comma between digits would
+// otherwise be split at the commas and read as other numbers.
+bool hasDecimalComma(const std::string& line) {
+  std::istringstream ls(line);
+  std::string tok;
+  int columns = 0;
+  bool comma_inside = false;
+  while (ls >> tok) {
+    ++columns;
+    for (std::size_t i = 1; i + 1 < tok.size(); ++i)
+      if (tok[i] == ',' && std::isdigit(static_cast<unsigned char>(tok[i - 1])) &&
+          std::isdigit(static_cast<unsigned char>(tok[i + 1])))
+        comma_inside = true;
+  }
+  return columns >= 2 && comma_inside;
+}
+
 // The vertex count and storage of a PLY header, for the check before PCL reads it; "" if the
 // header is usable, else what is wrong with it.
-std::string checkPlyHeader(const std::string& path, std::uint64_t* count, bool* binary) {
+std::string checkPlyHeader(const std::string& path, std::uint64_t* count, bool* binary, std::uint64_t* vertex_bytes,
+                           std::uint64_t* header_bytes) {
   std::ifstream in(path, std::ios::binary);
   std::string line, element;
   std::vector<std::string> vertex_properties;
   *count = 0;
   *binary = false;
+  *vertex_bytes = 0;
+  // A binary vertex's size from its properties' types: PCL allocates count x that before reading.
+  auto type_bytes = [](const std::string& t) -> std::uint64_t {
+    if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+    if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+    if (t == "double" || t == "float64") return 8;
+    return 4;
+  };
   while (std::getline(in, line) && line.rfind("end_header", 0) != 0) {
     std::istringstream ls(line);
     std::string word;
@@ -255,9 +281,11 @@ std::string checkPlyHeader(const std::string& path, std::uint64_t* count, bool* 
       if (type == "list") return "malformed PLY header: a list property of vertices";
       ls >> name;
       vertex_properties.push_back(name);
+      *vertex_bytes += type_bytes(type);
     }
   }
   if (!in) return "malformed PLY header";
+  *header_bytes = static_cast<std::uint64_t>(in.tellg());
   auto has = [&](const char* name) {
     return std::find(vertex_properties.begin(), vertex_properties.end(), name) != vertex_properties.end();
   };
@@ -280,13 +308,23 @@ std::string checkPlyHeader(const std::string& path, std::uint64_t* count, bool* 
 }
 
 CloudFile readPly(const std::string& path) {
-  std::uint64_t count = 0;
+  std::uint64_t count = 0, vertex_bytes = 0, header_bytes = 0;
   bool binary = false;
-  const std::string problem = checkPlyHeader(path, &count, &binary);
+  const std::string problem = checkPlyHeader(path, &count, &binary, &vertex_bytes, &header_bytes);
   if (!problem.empty()) return fail(path, problem);
-  // A binary vertex takes at least 3 bytes, an ascii one at least 6 ("0 0 0\n").
-  if (count * (binary ? 3 : 6) > fileSize(path))
+  // A binary vertex takes its properties' bytes, an ascii one at least 6 ("0 0 0\n").
+  if (count * (binary ? vertex_bytes : 6) > fileSize(path))
     return fail(path, "truncated: the header's " + std::to_string(count) + " vertices cannot fit in the file");
+  if (!binary) {
+    // PCL's ascii reader turns a number it cannot parse into NaN: decimal commas would read as
+    // a cloud of NaN points.
+    std::ifstream in(path, std::ios::binary);
+    in.seekg(static_cast<std::streamoff>(header_bytes));
+    std::string line;
+    for (int i = 0; i < 64 && std::getline(in, line); ++i)
+      if (hasDecimalComma(line))
+        return fail(path, "decimal commas are not supported, use '.' ('" + line.substr(0, 80) + "')");
+  }
   pcl::PLYReader reader;
   pcl::PCLPointCloud2 blob;
   Eigen::Vector4f origin;
@@ -296,22 +334,6 @@ CloudFile readPly(const std::string& path) {
   return pointsOf(blob, path);  // which checks the x, y, z fields and the data's length
 }
 
-// "0,5 0,2 0,3": whitespace-separated columns whose numbers hold a comma between digits would
-// otherwise be split at the commas and read as other numbers.
-bool hasDecimalComma(const std::string& line) {
-  std::istringstream ls(line);
-  std::string tok;
-  int columns = 0;
-  bool comma_inside = false;
-  while (ls >> tok) {
-    ++columns;
-    for (std::size_t i = 1; i + 1 < tok.size(); ++i)
-      if (tok[i] == ',' && std::isdigit(static_cast<unsigned char>(tok[i - 1])) &&
-          std::isdigit(static_cast<unsigned char>(tok[i + 1])))
-        comma_inside = true;
-  }
-  return columns >= 2 && comma_inside;
-}
 
 CloudFile readText(const std::string& path) {
   std::ifstream in(path);
@@ -366,23 +388,45 @@ CloudFile readPointCloud(const std::string& path) {
 
 PointList thinCloud(const PointList& points, double leaf) {
   PointList out;
-  if (!(leaf > 0.0)) {
-    for (const auto& p : points)
-      if (p.allFinite()) out.push_back(p);
-    return out;
-  }
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  PointList finite;
+  finite.reserve(points.size());
   for (const auto& p : points)
-    if (p.allFinite())
-      cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-  if (cloud->empty()) return out;
-  pcl::PointCloud<pcl::PointXYZ> thinned;
-  pcl::VoxelGrid<pcl::PointXYZ> grid;
-  grid.setInputCloud(cloud);
+    if (p.allFinite()) finite.push_back(p);
+  if (!(leaf > 0.0) || finite.empty()) return finite;
+  // PCL's grid is single precision: offsetting by the first point keeps georeferenced
+  // coordinates (hundreds of kilometres) from snapping to centimetres.
+  const Eigen::Vector3d origin = finite.front();
+  Eigen::Vector3d lo = finite.front() - origin, hi = lo;
+  for (const auto& p : finite) {
+    lo = lo.cwiseMin(p - origin);
+    hi = hi.cwiseMax(p - origin);
+  }
+  // PCL's grid returns its input unthinned once its voxel count passes the int range: a cloud
+  // that large goes through in slabs along its longest side, cut on the leaf's grid.
+  const Eigen::Vector3d cells = ((hi - lo) / leaf).array().floor() + 1.0;
+  const double max_cells = 1.0e9;
+  int axis = 0;
+  cells.maxCoeff(&axis);
+  const double other = cells.prod() / cells[axis];
+  const double slab_cells = std::max(1.0, std::floor(max_cells / other));
+  const double slab = slab_cells * leaf;
+  const std::size_t slabs = static_cast<std::size_t>(std::ceil(cells[axis] / slab_cells));
+  std::vector<pcl::PointCloud<pcl::PointXYZ>> parts(std::max<std::size_t>(1, slabs));
+  for (const auto& p : finite) {
+    const Eigen::Vector3d q = p - origin;
+    const std::size_t k = std::min(parts.size() - 1, static_cast<std::size_t>((q[axis] - lo[axis]) / slab));
+    parts[k].push_back(pcl::PointXYZ(static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z())));
+  }
   const float l = static_cast<float>(leaf);
-  grid.setLeafSize(l, l, l);
-  grid.filter(thinned);
-  for (const auto& q : thinned) out.emplace_back(q.x, q.y, q.z);
+  for (auto& part : parts) {
+    if (part.empty()) continue;
+    pcl::PointCloud<pcl::PointXYZ> thinned;
+    pcl::VoxelGrid<pcl::PointXYZ> grid;
+    grid.setInputCloud(part.makeShared());
+    grid.setLeafSize(l, l, l);
+    grid.filter(thinned);
+    for (const auto& q : thinned) out.push_back(origin + Eigen::Vector3d(q.x, q.y, q.z));
+  }
   return out;
 }
 

@@ -5,11 +5,15 @@
 #include <fruit_shape_completion/instrument/cloud_io.h>
 #include <fruit_shape_completion/fruit_report.h>
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
+#include <fruit_shape_completion/fruit_sightings.h>
 #include <fruit_shape_completion/tsdf_surface.h>
+#include <fruit_shape_completion/volume_interval.h>
 
 #include "command_line.h"
 
+#include <algorithm>
 #include <iostream>
+#include <map>
 
 #include "fruit_text.h"
 
@@ -18,6 +22,7 @@ using namespace fruit_shape_completion;
 int main(int argc, char** argv) {
   std::string map_file, surface_out, mesh_out, export_out;
   bool fit = false, json = false;
+  TsdfMapParams map_params;
   CLI::App app("Inspects a saved TSDF fruit map: its size, its surface and the superellipsoids fitted to it.",
                "map_tool");
   app.add_option("--map", map_file, "FILE.tsdf (save_map, demo_mapping --save-map)")->required();
@@ -26,14 +31,23 @@ int main(int argc, char** argv) {
   app.add_flag("--fit", fit, "fit the fruits and list them");
   app.add_flag("--json", json, "one JSON object on stdout");
   app.add_option("--export-fruits", export_out,
-                 "the fitted fruits as the plugin's export_fruits writes them (.csv or .json); a map file\n"
-                 "holds no views, so views, first_seen and last_seen stay empty");
+                 "the fitted fruits as the plugin's export_fruits writes them (.csv or .json); views,\n"
+                 "first_seen and last_seen from the counts save_map keeps with the map (empty for a\n"
+                 "file without them, as demo_mapping --save-map writes)");
+  app.add_option("--memory-budget-mb", map_params.memory_budget_mb,
+                 "refuse maps needing more memory than this (a plugin with a larger memory_budget_mb saves them)")
+      ->check(CLI::PositiveNumber);
   if (const int done = parseCommandLine(app, argc, argv); done >= 0) return done;
-  TsdfMap map;
-  std::string err;
-  if (!map.load(map_file, &err)) {
+  TsdfMap map(map_params);
+  std::string err, rest;
+  if (!map.load(map_file, &err, &rest)) {
     std::cerr << "map_tool: " << err << "\n";
     return 1;
+  }
+  std::vector<CarriedSightings> carried;
+  if (!readCarriedSightings(rest, &carried, &err)) {
+    std::cerr << "map_tool: warning: " << map_file << ": " << err << "; fruits exported without views\n";
+    carried.clear();
   }
   const PointList surface = extractSurfacePoints(map);
   std::cerr << "map_tool: " << map.blockCount() << " blocks, " << map.observedVoxelCount()
@@ -48,12 +62,29 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::vector<FruitEstimate> fruits;
+  std::map<int, FruitSightings> seen;
   if (fit || !export_out.empty()) {
     FruitShapePipeline pipeline;
     fruits = pipeline.update(surface);
+    if (!carried.empty()) {
+      // As the plugin after load_map: each fruit counts the saved views of the record it claims
+      // (one without reads as seen in one), and its interval is that count's.
+      FruitSightingLog log;
+      log.carryOver(std::move(carried));
+      log.update(fruits);
+      seen = log.sightings();
+      for (auto& f : fruits) {
+        if (!f.accepted) continue;
+        const auto it = seen.find(f.id);
+        f.views = std::max(1, it == seen.end() ? 0 : it->second.views);
+        const VolumeInterval ci = volumeInterval90(f);
+        f.volume_lo = ci.lo;
+        f.volume_hi = ci.hi;
+      }
+    }
   }
   if (!export_out.empty()) {
-    if (!writeFruitReport(export_out, fruits, {}, &err)) {
+    if (!writeFruitReport(export_out, fruits, seen, &err)) {
       std::cerr << "map_tool: " << err << "\n";
       return 1;
     }

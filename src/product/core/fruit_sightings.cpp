@@ -1,6 +1,7 @@
 #include <fruit_shape_completion/fruit_sightings.h>
 
 #include <algorithm>
+#include <string>
 #include <cmath>
 #include <cstring>
 
@@ -102,8 +103,11 @@ bool readCarriedSightings(const std::string& bytes, std::vector<CarriedSightings
     get(&c.seen.last_seen, 8);
     c.center = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
     c.seen.views = views;
-    if (!c.center.allFinite() || views <= 0) {
-      *error = "a fruit's view count record is not finite or counts no view";
+    auto stamp = [](double t) { return std::isnan(t) || std::isfinite(t); };  // NaN: never seen
+    if (!c.center.allFinite() || views <= 0 || views > kMaxCarriedViews || !stamp(c.seen.first_seen) ||
+        !stamp(c.seen.last_seen)) {
+      *error = "a fruit's view count record holds a centre or stamp that is not finite, or a count outside 1.." +
+               std::to_string(kMaxCarriedViews);
       return false;
     }
   }
@@ -133,31 +137,46 @@ void FruitSightingLog::record(const View& view, int fruit_id, FruitSightings* s)
   if (!(s->last_seen >= view.last_time)) s->last_seen = view.last_time;
 }
 
-FruitSightings FruitSightingLog::claimCarried(const FruitEstimate& fruit) {
-  auto best = unclaimed_.end();
-  double best_d = kCarryRadius;
-  for (auto it = unclaimed_.begin(); it != unclaimed_.end(); ++it) {
-    const double d = (it->center - fruit.shape.t).norm();
-    if (d <= best_d) {
-      best_d = d;
-      best = it;
+void FruitSightingLog::claimCarried(const std::vector<const FruitEstimate*>& fresh) {
+  // Nearest pairs first over all new fruits, so that a fragment fitted first does not take the
+  // record of the fruit beside it.
+  struct Pair {
+    double distance;
+    std::size_t fruit, record;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < fresh.size(); ++i)
+    for (std::size_t r = 0; r < unclaimed_.size(); ++r) {
+      const double d = (unclaimed_[r].center - fresh[i]->shape.t).norm();
+      if (d <= kCarryRadius) pairs.push_back({d, i, r});
     }
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.distance < b.distance; });
+  std::vector<char> fruit_done(fresh.size(), 0), record_done(unclaimed_.size(), 0);
+  for (const Pair& p : pairs) {
+    if (fruit_done[p.fruit] || record_done[p.record]) continue;
+    fruit_done[p.fruit] = record_done[p.record] = 1;
+    sightings_[fresh[p.fruit]->id] = unclaimed_[p.record].seen;
   }
-  if (best == unclaimed_.end()) return FruitSightings();
-  const FruitSightings seen = best->seen;
-  unclaimed_.erase(best);
-  return seen;
+  std::size_t kept = 0;
+  for (std::size_t r = 0; r < unclaimed_.size(); ++r)
+    if (!record_done[r]) unclaimed_[kept++] = unclaimed_[r];
+  unclaimed_.resize(kept);
 }
 
 void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits) {
+  std::vector<const FruitEstimate*> fresh;
+  for (const auto& f : fruits)
+    if (f.accepted && !sightings_.count(f.id) && f.shape.t.allFinite()) fresh.push_back(&f);
+  if (!unclaimed_.empty() && !fresh.empty()) claimCarried(fresh);
   for (const auto& f : fruits) {
     if (!f.accepted) continue;
+    if (f.shape.t.allFinite()) centers_[f.id] = f.shape.t;
     auto it = sightings_.find(f.id);
-    if (it == sightings_.end()) {  // new: the views that found it may already be matched
-      it = sightings_.emplace(f.id, claimCarried(f)).first;
+    const bool is_new = it == sightings_.end() || std::find(fresh.begin(), fresh.end(), &f) != fresh.end();
+    if (it == sightings_.end()) it = sightings_.emplace(f.id, FruitSightings()).first;
+    if (is_new)  // the views that found it may already be matched
       for (const auto& v : kept_)
         if (saw(v, f)) record(v, f.id, &it->second);
-    }
     for (const auto& v : pending_)
       if (saw(v, f)) record(v, f.id, &it->second);
   }
@@ -171,18 +190,18 @@ void FruitSightingLog::carryOver(std::vector<CarriedSightings> carried) {
   unclaimed_ = std::move(carried);
 }
 
-std::vector<CarriedSightings> FruitSightingLog::carried(const std::vector<FruitEstimate>& fruits) const {
+std::vector<CarriedSightings> FruitSightingLog::carried() const {
   std::vector<CarriedSightings> out = unclaimed_;
-  for (const auto& f : fruits) {
-    const auto it = sightings_.find(f.id);
-    if (!f.accepted || it == sightings_.end() || it->second.views <= 0 || !f.shape.t.allFinite()) continue;
-    out.push_back(CarriedSightings{f.shape.t, it->second});
+  for (const auto& [id, seen] : sightings_) {
+    const auto c = centers_.find(id);
+    if (seen.views > 0 && c != centers_.end()) out.push_back(CarriedSightings{c->second, seen});
   }
   return out;
 }
 
 void FruitSightingLog::clear() {
   unclaimed_.clear();
+  centers_.clear();
   pending_.clear();
   kept_.clear();
   sightings_.clear();

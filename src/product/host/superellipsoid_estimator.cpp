@@ -327,18 +327,16 @@ void removeStale(const std::string& path, std::string* warning) {
 bool SuperellipsoidEstimator::saveMap(const std::string& path, std::string* error, std::string* warning) {
   removeStale(path, warning);
   std::string bytes;
+  std::vector<CarriedSightings> carried;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
     integratePending();
     map_.serialize(&bytes);
-  }
-  // The last update's fruits with their view counts, after the map (views integrated since are
-  // in the map but matched to no fruit yet: they count from the load on).
-  const std::shared_ptr<const std::vector<FruitEstimate>> fruits = sharedFruits();
-  std::vector<CarriedSightings> carried;
-  {
-    std::lock_guard<std::mutex> lock(sightings_mutex_);
-    carried = sightings_.carried(*fruits);
+    // The fruits' view counts after the map, taken with it (a load cannot swap the map between
+    // the two). Views integrated since the last update are in the map but matched to no fruit
+    // yet: after a load they count from then on.
+    std::lock_guard<std::mutex> sightings_lock(sightings_mutex_);
+    carried = sightings_.carried();
   }
   appendCarriedSightings(carried, &bytes);
   return writeFileAtomically(path, bytes, error);
@@ -349,17 +347,17 @@ bool SuperellipsoidEstimator::loadMap(const std::string& path, std::string* erro
   TsdfMap loaded(params_.map);  // read outside the lock: the map keeps taking views meanwhile
   std::string rest;
   if (!loaded.load(path, error, &rest)) return false;
-  std::vector<CarriedSightings> carried;
-  std::string carried_error;
-  if (!readCarriedSightings(rest, &carried, &carried_error) && warning) {
-    *warning += std::string(warning->empty() ? "" : "; ") + path + ": " + carried_error +
-                "; the map is loaded and its fruits count views from the load on";
-  }
   if (loaded.params().voxel_size != params_.map.voxel_size) {
     if (error)
       *error = path + ": voxel size " + std::to_string(loaded.params().voxel_size) + " m differs from the map's " +
                std::to_string(params_.map.voxel_size) + " m";
     return false;
+  }
+  std::vector<CarriedSightings> carried;
+  std::string carried_error;
+  if (!readCarriedSightings(rest, &carried, &carried_error) && warning) {
+    *warning += std::string(warning->empty() ? "" : "; ") + path + ": " + carried_error +
+                "; the map is loaded and its fruits count views from the load on";
   }
   // A fit running on the old map's surface would store and count fruits of a map that is gone.
   const std::unique_lock<std::mutex> fit_lock = cancelRunningFit();

@@ -241,8 +241,10 @@ struct FruitPublisher::Visuals {
   std::array<ros::Publisher, kTopics> topics;
 
   // publish() on the estimator's thread, connect callbacks on the spinner's. Never held while a
-  // message is built: a build can take long on a row, and a reset waits for publish().
+  // message is built or sent (a latched topic serialises the message in publish: megabytes on a
+  // row), since a reset waits for publish().
   std::mutex mutex;
+  std::array<std::mutex, kTopics> sending;  // one sender per topic at a time, so none overtakes
   std::shared_ptr<const State> state = std::make_shared<const State>();
   std::array<bool, kTopics> stale{};  // the latest state is not yet published on this topic
   std::size_t built = 0, failed = 0;
@@ -294,12 +296,27 @@ struct FruitPublisher::Visuals {
                           topics[topic].getTopic().c_str(), e.what(), n);
         return;
       }
-      std::lock_guard<std::mutex> lock(mutex);
-      if (s != state) continue;
-      if (!stale[topic]) return;  // a concurrent caller sent this state already
-      send();
-      stale[topic] = false;
-      ++built;
+      std::lock_guard<std::mutex> one_sender(sending[topic]);
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (s != state) continue;
+        if (!stale[topic]) return;  // a concurrent caller sent this state already
+        stale[topic] = false;
+        ++built;
+      }
+      try {
+        send();
+      } catch (const std::exception& e) {
+        std::size_t n = 0;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (s == state) stale[topic] = true;
+          --built;
+          n = ++failed;
+        }
+        ROS_WARN_THROTTLE(10.0, "%s not published: %s (%zu failed so far; the next update tries again)",
+                          topics[topic].getTopic().c_str(), e.what(), n);
+      }
       return;
     }
   }
