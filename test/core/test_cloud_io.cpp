@@ -230,6 +230,11 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
       std::string("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOI\0\0\0\xf1NTS 1\nDATA binary\n", 68),
       "FIELDS x y z\nSIZE 4 4 3\nTYPE F F F\nWIDTH 1\nDATA binary\n",
       "FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA binary\n",
+      // Found by fuzz_cloud_file (fifteenth session): value lines that are not numbers to their
+      // end; PCL dropped the field and allocated terabytes.
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT =2 1 1 1\nWIDTH 0\n"
+      "HEIGHT 11VIEWPOINT 1 POINTS 4\nDATA binary\n",
+      "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1 2\nDATA binary\n",
   };
   for (const auto& text : lying) {
     writeFile(path, text + std::string(64, '\0'));

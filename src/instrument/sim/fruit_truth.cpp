@@ -199,10 +199,9 @@ std::vector<FruitTruth> computeFruitTruth(const Scene& materials_from,
     f.color = colorClass(materials_from.materials[mat].rgb);
     // The paper's ground truth: a superellipsoid fitted to area-uniform surface samples.
     std::vector<double> area(comp.size());
-    double total = 0;
     for (std::size_t i = 0; i < comp.size(); ++i) {
       const Eigen::Vector3d a = welded[tris[i][0]], b = welded[tris[i][1]], c = welded[tris[i][2]];
-      total += area[i] = 0.5 * (b - a).cross(c - a).norm();
+      area[i] = 0.5 * (b - a).cross(c - a).norm();
     }
     std::mt19937 rng(1234 + f.id);
     std::discrete_distribution<int> pick(area.begin(), area.end());

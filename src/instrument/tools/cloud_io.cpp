@@ -93,14 +93,17 @@ struct PcdHeader {
 
 // Reads the header's lines up to DATA; "" or what is wrong with them.
 std::string readPcdHeader(std::istream& in, PcdHeader* h) {
+  // A value line is numbers to its end: PCL reads "COUNT =2" or "HEIGHT 11VIEWPOINT ..." its own
+  // way (a field dropped, a width of zero) and then allocated terabytes.
   auto numbers = [](std::istringstream& ls, std::vector<std::uint64_t>* out) {
     long double v;
     while (ls >> v) {
       if (!(v >= 0 && v <= 1e6)) return false;
       out->push_back(static_cast<std::uint64_t>(v));
     }
-    return true;
+    return ls.eof();
   };
+  auto rest_empty = [](std::istringstream& ls) { return (ls >> std::ws).eof(); };
   std::string line;
   while (h->data.empty() && std::getline(in, line)) {
     // The header is text; PCL's parser misreads control bytes in it (a NUL inside a key made
@@ -117,7 +120,7 @@ std::string readPcdHeader(std::istream& in, PcdHeader* h) {
     else if (key == "SIZE") ok = numbers(ls, &h->sizes);
     else if (key == "COUNT") ok = numbers(ls, &h->counts);
     else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
-      ok = (ls >> v) && v >= 0 && v <= 1e12;
+      ok = (ls >> v) && v >= 0 && v <= 1e12 && rest_empty(ls);
       (key == "WIDTH" ? h->width : key == "HEIGHT" ? h->height : h->points) = ok ? static_cast<std::uint64_t>(v) : 0;
       h->has_points = h->has_points || key == "POINTS";
       h->has_width = h->has_width || key == "WIDTH";
@@ -393,9 +396,10 @@ PointList thinCloud(const PointList& points, double leaf) {
   for (const auto& p : points)
     if (p.allFinite()) finite.push_back(p);
   if (!(leaf > 0.0) || finite.empty()) return finite;
-  // PCL's grid is single precision: offsetting by the first point keeps georeferenced
-  // coordinates (hundreds of kilometres) from snapping to centimetres.
-  const Eigen::Vector3d origin = finite.front();
+  // PCL's grid is single precision: offsetting by a grid corner near the first point keeps
+  // georeferenced coordinates (hundreds of kilometres) from snapping to centimetres, and the
+  // cubes where they were.
+  const Eigen::Vector3d origin = (finite.front() / leaf).array().floor().matrix() * leaf;
   Eigen::Vector3d lo = finite.front() - origin, hi = lo;
   for (const auto& p : finite) {
     lo = lo.cwiseMin(p - origin);

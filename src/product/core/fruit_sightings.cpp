@@ -33,19 +33,22 @@ void FruitSightingLog::addView(double time, const PointList& fruit_points, const
   if (points.empty()) return;  // nothing a fruit could be matched with
   // The frames of one pose wait as one entry: upstream's frames at a pose would otherwise fill
   // the log, and the fruit a later fit finds first would lose the poses that saw it.
-  View* v = nullptr;
-  if (same_pose && !pending_.empty() && pending_.back().pose == pose_) {
-    v = &pending_.back();
-    v->last_time = std::max(v->last_time, time);
-    for (std::size_t i = 0; i < points.size() && v->points.size() < points_per_view_; ++i) v->points.push_back(points[i]);
-  } else {
-    pending_.push_back(View{time, time, pose_, std::move(points)});
-    v = &pending_.back();
-  }
-  v->lo = v->hi = v->points.front();
-  for (const auto& p : v->points) {
+  auto widen = [](View* v, const Point& p) {
     v->lo = v->lo.cwiseMin(p);
     v->hi = v->hi.cwiseMax(p);
+  };
+  if (same_pose && !pending_.empty() && pending_.back().pose == pose_) {
+    View* v = &pending_.back();
+    v->last_time = std::max(v->last_time, time);
+    for (std::size_t i = 0; i < points.size() && v->points.size() < points_per_view_; ++i) {
+      v->points.push_back(points[i]);
+      widen(v, points[i]);
+    }
+  } else {
+    pending_.push_back(View{time, time, pose_, std::move(points)});
+    View* v = &pending_.back();
+    v->lo = v->hi = v->points.front();
+    for (const auto& p : v->points) widen(v, p);
   }
   // Fits may fall behind the views: the oldest unmatched views go first.
   while (pending_.size() > kept_views_) pending_.pop_front();
