@@ -328,6 +328,9 @@ TEST(FitCloudTool, ThinningWorksFarFromTheOriginAndOverLargeExtents) {
   EXPECT_GE(thinned.size(), 2u);
   EXPECT_LE(thinned.size(), 16u);
   for (const auto& p : thinned) EXPECT_TRUE(p.norm() < 0.01 || (p - Eigen::Vector3d(12, 12, 3)).norm() < 0.01) << p.transpose();
+  // Coordinates no farm has stay as they are (no block index for them), the rest is thinned.
+  thinned = thinCloud({Eigen::Vector3d(1e300, 0, 0), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.0001, 0, 0)}, 0.003);
+  EXPECT_EQ(thinned.size(), 2u);
 }
 
 TEST(FitCloudTool, ADenseRawViewIsTooLargeAClusterUnlessThinned) {

@@ -21,8 +21,9 @@ struct CloudFile {
 CloudFile readPointCloud(const std::string& path);
 
 // One point per occupied cube of side `leaf` [m] (the centroid of its points; PCL's voxel
-// grid): a raw camera cloud thinned toward the spacing the map's surface has. Non-finite
-// points are dropped; leaf <= 0 returns the finite points as they are.
+// grid, one grid over the whole cloud however large or far from the origin): a raw camera
+// cloud thinned toward the spacing the map's surface has. Non-finite points are dropped;
+// leaf <= 0 returns the finite points as they are.
 PointList thinCloud(const PointList& points, double leaf);
 
 // ASCII PLY; `colors` empty or one RGB per point.

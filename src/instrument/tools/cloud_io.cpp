@@ -9,11 +9,14 @@
 #include <pcl/filters/voxel_grid.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <new>
 #include <sstream>
 #include <stdexcept>
@@ -390,46 +393,38 @@ CloudFile readPointCloud(const std::string& path) {
 }
 
 PointList thinCloud(const PointList& points, double leaf) {
-  PointList out;
   PointList finite;
   finite.reserve(points.size());
   for (const auto& p : points)
     if (p.allFinite()) finite.push_back(p);
   if (!(leaf > 0.0) || finite.empty()) return finite;
-  // PCL's grid is single precision: offsetting by a grid corner near the first point keeps
-  // georeferenced coordinates (hundreds of kilometres) from snapping to centimetres, and the
-  // cubes where they were.
-  const Eigen::Vector3d origin = (finite.front() / leaf).array().floor().matrix() * leaf;
-  Eigen::Vector3d lo = finite.front() - origin, hi = lo;
+  // PCL's grid returns its input unthinned once its voxel count passes the int range, and it
+  // works in single precision: the cloud goes through in blocks of 512 leaves a side, each
+  // relative to its own corner, so that georeferenced coordinates keep their millimetres.
+  // Blocks are cut on the leaf's grid: the cubes are those of one grid over the whole cloud.
+  const double block = 512.0 * leaf;
+  constexpr double kFar = 1e15;  // a block index beyond this is no place on a farm
+  std::map<std::array<std::int64_t, 3>, pcl::PointCloud<pcl::PointXYZ>> blocks;
+  PointList out;
   for (const auto& p : finite) {
-    lo = lo.cwiseMin(p - origin);
-    hi = hi.cwiseMax(p - origin);
-  }
-  // PCL's grid returns its input unthinned once its voxel count passes the int range: a cloud
-  // that large goes through in slabs along its longest side, cut on the leaf's grid.
-  const Eigen::Vector3d cells = ((hi - lo) / leaf).array().floor() + 1.0;
-  const double max_cells = 1.0e9;
-  int axis = 0;
-  cells.maxCoeff(&axis);
-  const double other = cells.prod() / cells[axis];
-  const double slab_cells = std::max(1.0, std::floor(max_cells / other));
-  const double slab = slab_cells * leaf;
-  const std::size_t slabs = static_cast<std::size_t>(std::ceil(cells[axis] / slab_cells));
-  std::vector<pcl::PointCloud<pcl::PointXYZ>> parts(std::max<std::size_t>(1, slabs));
-  for (const auto& p : finite) {
-    const Eigen::Vector3d q = p - origin;
-    const std::size_t k = std::min(parts.size() - 1, static_cast<std::size_t>((q[axis] - lo[axis]) / slab));
-    parts[k].push_back(pcl::PointXYZ(static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z())));
+    const Eigen::Vector3d cell = (p / block).array().floor();
+    if ((cell.array().abs() > kFar).any()) {
+      out.push_back(p);
+      continue;
+    }
+    const Eigen::Vector3d q = p - cell * block;
+    blocks[{static_cast<std::int64_t>(cell.x()), static_cast<std::int64_t>(cell.y()), static_cast<std::int64_t>(cell.z())}]
+        .push_back(pcl::PointXYZ(static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z())));
   }
   const float l = static_cast<float>(leaf);
-  for (auto& part : parts) {
-    if (part.empty()) continue;
+  for (auto& [key, part] : blocks) {
+    const Eigen::Vector3d corner = Eigen::Vector3d(key[0], key[1], key[2]) * block;
     pcl::PointCloud<pcl::PointXYZ> thinned;
     pcl::VoxelGrid<pcl::PointXYZ> grid;
     grid.setInputCloud(part.makeShared());
     grid.setLeafSize(l, l, l);
     grid.filter(thinned);
-    for (const auto& q : thinned) out.push_back(origin + Eigen::Vector3d(q.x, q.y, q.z));
+    for (const auto& q : thinned) out.push_back(corner + Eigen::Vector3d(q.x, q.y, q.z));
   }
   return out;
 }
