@@ -12,7 +12,9 @@ case "$KIND" in
   asan) FLAGS="-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
         TESTS="test_superellipsoid test_clusters test_fit test_pipeline test_cloud_io test_tsdf test_sim test_planner" ;;
   tsan) FLAGS="-fsanitize=thread"
-        TESTS="test_tsdf test_planner test_pipeline" ;;
+        TESTS="test_tsdf test_planner test_pipeline"
+        # Third-party reports only (test/tsan.supp says which and why).
+        export TSAN_OPTIONS="suppressions=$ROOT/test/tsan.supp${TSAN_OPTIONS:+ $TSAN_OPTIONS}" ;;
   *) echo "usage: scripts/sanitize.sh asan|tsan" >&2; exit 2 ;;
 esac
 "$ROOT/scripts/setup.sh"
