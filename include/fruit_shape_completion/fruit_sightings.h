@@ -49,15 +49,18 @@ class FruitSightingLog {
     return posesWithin(a, b, kSamePoseMove, kSamePoseTurnDeg * M_PI / 180.0);
   }
   void addView(double time, const PointList& fruit_points, const Eigen::Isometry3d& sensor_pose);
-  void update(const std::vector<FruitEstimate>& fruits);
+  // Matches the waiting views with an update's fruits; `not_accepted` are that update's other
+  // fruits: matched to no view, their counts kept for a save (a fruit a leaf grew into).
+  void update(const std::vector<FruitEstimate>& fruits, const std::vector<FruitEstimate>& not_accepted = {});
   const std::map<int, FruitSightings>& sightings() const { return sightings_; }
   // Clears the log (as clear()) and keeps a loaded map's records: fruits fitted for the first
   // time start from the counts of the records within kCarryRadius of their centres (nearest
   // pairs first, each record used once).
   void carryOver(std::vector<CarriedSightings> carried);
   static constexpr double kCarryRadius = 0.02;  // [m]
-  // For a save: every counted fruit at its last accepted centre (also one not accepted in the
-  // last update), and the records no fruit has claimed yet.
+  // For a save: the last update's counted fruits (those not accepted in it too) at their last
+  // accepted centres, and the records no fruit has claimed yet. Ids the last update no longer
+  // had (a fragment merged into its fruit) are left out.
   std::vector<CarriedSightings> carried() const;
   void clear();
 
@@ -82,6 +85,7 @@ class FruitSightingLog {
   std::map<int, FruitSightings> sightings_;
   std::vector<CarriedSightings> unclaimed_;  // a loaded map's records no fruit has claimed
   std::map<int, Eigen::Vector3d> centers_;    // per fruit, its last accepted centre
+  std::set<int> alive_;                       // the ids of the last update's fruits
 };
 
 }  // namespace fruit_shape_completion

@@ -159,7 +159,15 @@ TEST(CloudIo, PcdAsciiAndMalformedFiles) {
   writeFile(bad_ply, wide + "end_header\n" + std::string(4000000, '\0'));
   const CloudFile short_binary = readPointCloud(bad_ply);
   EXPECT_FALSE(short_binary.ok());
-  EXPECT_NE(short_binary.error.find("truncated"), std::string::npos) << short_binary.error;
+  EXPECT_NE(short_binary.error.find("cannot fit in the file"), std::string::npos) << short_binary.error;
+  // A vertex of 21 845 bytes times a count chosen to wrap 64 bits to less than the file.
+  std::string wrap = "ply\nformat binary_little_endian 1.0\nelement vertex 844437815230468\nproperty float x\n"
+                     "property float y\nproperty float z\n";
+  for (int k = 3; k < 5461; ++k) wrap += "property float p" + std::to_string(k) + "\n";
+  writeFile(bad_ply, wrap + "property uchar q\nend_header\n" + std::string(30000, '\0'));
+  const CloudFile wrapped = readPointCloud(bad_ply);
+  EXPECT_FALSE(wrapped.ok());
+  EXPECT_NE(wrapped.error.find("cannot fit in the file"), std::string::npos) << wrapped.error;
   // PCL's ascii reader makes NaN of what it cannot parse: decimal commas are named instead.
   writeFile(bad_ply, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
                      "end_header\n0,1 0,2 0,3\n0,2 0,2 0,3\n");
@@ -242,6 +250,11 @@ TEST(CloudIo, PcdBinaryAndBinaryCompressed) {
     EXPECT_FALSE(f.ok()) << text;
     EXPECT_FALSE(f.error.empty());
   }
+  // Refused by the header check, before PCL could ask for its allocation.
+  writeFile(path, "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT =2 1 1 1\nWIDTH 0\n"
+                  "HEIGHT 11VIEWPOINT 1 POINTS 4\nDATA binary\n" + std::string(64, '\0'));
+  f = readPointCloud(path);
+  EXPECT_NE(f.error.find("malformed PCD header: bad COUNT"), std::string::npos) << f.error;
   // An uncompressed size LZF cannot reach from its compressed size (12 MB from 20 bytes).
   {
     const std::string h3 = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1000000\nPOINTS 1000000\n";

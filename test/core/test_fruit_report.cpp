@@ -248,7 +248,8 @@ TEST(FruitSightings, ALoadedMapsFruitsStartFromTheNearestSavedCounts) {
   for (const bool accepted : {true, false}) {
     FruitEstimate a_now = a;
     a_now.accepted = accepted;
-    log.update({a_now, far});
+    if (accepted) log.update({a_now, far});
+    else log.update({far}, {a_now});
     const std::vector<CarriedSightings> again = log.carried();
     int views = 0, at_a = 0;
     for (const auto& c : again) {
@@ -258,6 +259,11 @@ TEST(FruitSightings, ALoadedMapsFruitsStartFromTheNearestSavedCounts) {
     EXPECT_EQ(views, 6 + 2);
     EXPECT_EQ(at_a, 1);
   }
+  // An id the last update no longer had (a fragment merged into its fruit) is not saved.
+  log.update({far});
+  int saved_views = 0;
+  for (const auto& c : log.carried()) saved_views += c.seen.views;
+  EXPECT_EQ(saved_views, 2);  // the unclaimed record only
   // A fragment fitted beside a fruit does not take the fruit's record: nearest pairs first.
   FruitSightingLog pairs(8, 64);
   pairs.carryOver({{Eigen::Vector3d(0, 0, 0.5), five}});

@@ -41,7 +41,7 @@ class FruitPublisher {
   FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic);
   void publish(std::vector<FruitEstimate> fruits, SurfaceBlocks surface, const ros::Time& stamp);
   void publish(std::vector<FruitEstimate> fruits, PointList surface, const ros::Time& stamp);
-  // Marker and point cloud messages built so far.
+  // Marker and point cloud messages sent so far.
   std::size_t visualsBuilt() const;
 
  private:

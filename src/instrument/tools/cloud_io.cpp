@@ -319,7 +319,7 @@ CloudFile readPly(const std::string& path) {
   const std::string problem = checkPlyHeader(path, &count, &binary, &vertex_bytes, &header_bytes);
   if (!problem.empty()) return fail(path, problem);
   // A binary vertex takes its properties' bytes, an ascii one at least 6 ("0 0 0\n").
-  if (count * (binary ? vertex_bytes : 6) > fileSize(path))
+  if (count > fileSize(path) / std::max<std::uint64_t>(1, binary ? vertex_bytes : 6))  // no product to wrap
     return fail(path, "truncated: the header's " + std::to_string(count) + " vertices cannot fit in the file");
   if (!binary) {
     // PCL's ascii reader turns a number it cannot parse into NaN: decimal commas would read as

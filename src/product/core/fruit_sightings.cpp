@@ -166,7 +166,10 @@ void FruitSightingLog::claimCarried(const std::vector<const FruitEstimate*>& fre
   unclaimed_.resize(kept);
 }
 
-void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits) {
+void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits, const std::vector<FruitEstimate>& not_accepted) {
+  alive_.clear();
+  for (const auto* list : {&fruits, &not_accepted})
+    for (const auto& f : *list) alive_.insert(f.id);
   std::vector<const FruitEstimate*> fresh;
   for (const auto& f : fruits)
     if (f.accepted && !sightings_.count(f.id) && f.shape.t.allFinite()) fresh.push_back(&f);
@@ -197,7 +200,7 @@ std::vector<CarriedSightings> FruitSightingLog::carried() const {
   std::vector<CarriedSightings> out = unclaimed_;
   for (const auto& [id, seen] : sightings_) {
     const auto c = centers_.find(id);
-    if (seen.views > 0 && c != centers_.end()) out.push_back(CarriedSightings{c->second, seen});
+    if (seen.views > 0 && c != centers_.end() && alive_.count(id)) out.push_back(CarriedSightings{c->second, seen});
   }
   return out;
 }
@@ -205,6 +208,7 @@ std::vector<CarriedSightings> FruitSightingLog::carried() const {
 void FruitSightingLog::clear() {
   unclaimed_.clear();
   centers_.clear();
+  alive_.clear();
   pending_.clear();
   kept_.clear();
   sightings_.clear();

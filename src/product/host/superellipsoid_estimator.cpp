@@ -235,7 +235,7 @@ void SuperellipsoidEstimator::update() {
   if (params_.shape_targets) targets = selectShapeTargets(accepted, pipeline_.params().missing.samples, params_.targets);
   {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
-    sightings_.update(accepted);
+    sightings_.update(accepted, rejected);
     // Counted views: a fruit seen in few keeps their depth errors, and its interval says so
     // (volume_interval.h). One the log matched no view to (a loaded map's fruit the saved
     // counts did not cover, until a view sees it) reads as seen in one.

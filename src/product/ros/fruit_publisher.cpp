@@ -244,10 +244,11 @@ struct FruitPublisher::Visuals {
   // message is built or sent (a latched topic serialises the message in publish: megabytes on a
   // row), since a reset waits for publish().
   std::mutex mutex;
-  std::array<std::mutex, kTopics> sending;  // one sender per topic at a time, so none overtakes
+  std::array<std::mutex, kTopics> sending;  // one sender per topic at a time, so none overtakes;
+                                            // held only by try_lock, so nobody waits for a send
   std::shared_ptr<const State> state = std::make_shared<const State>();
   std::array<bool, kTopics> stale{};  // the latest state is not yet published on this topic
-  std::size_t built = 0, failed = 0;
+  std::size_t built = 0, failed = 0;  // messages sent; builds or sends that failed
 
   // The topic's message from `s`, and how to send it.
   std::function<void()> build(int topic, const State& s) const {
@@ -273,10 +274,12 @@ struct FruitPublisher::Visuals {
   }
 
   // Publishes the latest state on `topic` if it is not yet: built outside the lock, sent only if
-  // no newer state came meanwhile (then built again from that). A build that fails (out of
-  // memory on a large map) leaves the topic stale for the next update or subscriber to retry.
+  // no newer state came meanwhile (then built again from that). One sender per topic: a caller
+  // that finds another sending leaves it the newer state (it looks again when done) instead of
+  // waiting for it. A build or send that fails (out of memory on a large map) leaves the topic
+  // stale for the next update or subscriber to retry.
   void bringUpToDate(int topic) {
-    for (int attempt = 0; attempt < 3; ++attempt) {
+    for (int round = 0; round < 8; ++round) {
       std::shared_ptr<const State> s;
       {
         std::lock_guard<std::mutex> lock(mutex);
@@ -287,38 +290,36 @@ struct FruitPublisher::Visuals {
       try {
         send = build(topic, *s);
       } catch (const std::exception& e) {
-        std::size_t n = 0;
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          n = ++failed;
-        }
-        ROS_WARN_THROTTLE(10.0, "%s not published: %s (%zu failed so far; the next update tries again)",
-                          topics[topic].getTopic().c_str(), e.what(), n);
+        warnFailed(topic, e.what(), s);
         return;
       }
-      std::lock_guard<std::mutex> one_sender(sending[topic]);
+      const std::unique_lock<std::mutex> one_sender(sending[topic], std::try_to_lock);
+      if (!one_sender.owns_lock()) return;
       {
         std::lock_guard<std::mutex> lock(mutex);
         if (s != state) continue;
-        if (!stale[topic]) return;  // a concurrent caller sent this state already
+        if (!stale[topic]) return;  // another caller sent this state already
         stale[topic] = false;
-        ++built;
       }
       try {
         send();
       } catch (const std::exception& e) {
-        std::size_t n = 0;
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          if (s == state) stale[topic] = true;
-          --built;
-          n = ++failed;
-        }
-        ROS_WARN_THROTTLE(10.0, "%s not published: %s (%zu failed so far; the next update tries again)",
-                          topics[topic].getTopic().c_str(), e.what(), n);
+        warnFailed(topic, e.what(), s);
+        return;
       }
-      return;
+      std::lock_guard<std::mutex> lock(mutex);
+      ++built;
     }
+  }
+  void warnFailed(int topic, const char* what, const std::shared_ptr<const State>& s) {
+    std::size_t n = 0;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (s == state) stale[topic] = true;
+      n = ++failed;
+    }
+    ROS_WARN_THROTTLE(10.0, "%s not published: %s (%zu failed so far; the next update tries again)",
+                      topics[topic].getTopic().c_str(), what, n);
   }
 };
 
