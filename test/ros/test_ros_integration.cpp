@@ -790,7 +790,9 @@ TEST(FruitPublisher, BuildsMarkersAndCloudsOnlyForTopicsSomeoneListensTo) {
       "superellipsoids", 4, [&](const superellipsoid_msgs::SuperellipsoidArray::ConstPtr&) { ++arrays; });
   ASSERT_TRUE(waitFor([&] { return se.getNumPublishers() > 0; }, 10.0));
   publisher.publish({fruit(1, 0.0)}, PointList{Eigen::Vector3d(0, 0, 0.04)}, ros::Time(1.0));
+  publisher.sendVisuals();
   publisher.publish({fruit(1, 0.0), fruit(2, 0.2)}, PointList{Eigen::Vector3d(0, 0, 0.04)}, ros::Time(2.0));
+  publisher.sendVisuals();
   ASSERT_TRUE(waitFor([&] { return arrays.load() == 2; }, 10.0));  // the superellipsoids always go out
   EXPECT_EQ(publisher.visualsBuilt(), 0u);
 
@@ -810,6 +812,10 @@ TEST(FruitPublisher, BuildsMarkersAndCloudsOnlyForTopicsSomeoneListensTo) {
   EXPECT_EQ(publisher.visualsBuilt(), 1u);  // the markers only: the clouds still have no subscriber
 
   publisher.publish({fruit(1, 0.0)}, PointList(), ros::Time(3.0));
+  ros::WallDuration(0.2).sleep();
+  ros::spinOnce();
+  EXPECT_EQ(marker_messages, 1);  // kept, not sent: sendVisuals() sends, outside a host's locks
+  publisher.sendVisuals();
   ASSERT_TRUE(waitFor([&] { return marker_messages == 2; }, 10.0));
   EXPECT_EQ(markers.markers.size(), 3u);
   EXPECT_EQ(publisher.visualsBuilt(), 2u);

@@ -63,6 +63,7 @@ struct InputTotals {
 struct EstimatorStatus {
   std::size_t views_refused = 0;     // by the input stage or the map
   std::size_t views_without_fruit = 0;  // no fruit points left after the input stage: nothing to integrate
+  std::size_t views_overtaken_by_reset = 0;  // still in insertView when a reset came: dropped, not mapped
   std::size_t points_skipped = 0;    // NaN/Inf, or outside the range limits
   std::size_t rays_outside = 0;      // partly outside the crop box or the map's range
   std::size_t rays_over_budget = 0;  // partly dropped at the memory budget
@@ -154,6 +155,10 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // results_mutex_, then sightings_mutex_.
   std::mutex fit_mutex_;  // one update at a time; guards pipeline_
   std::atomic<bool> cancel_{false};  // a running update returns early and stores nothing
+  // Resets so far: a view that was already in insertView when a reset came belongs to the map
+  // that is gone (the planner cleared its tree before the reset) and is not mapped.
+  std::atomic<std::uint64_t> resets_{0};
+  std::atomic<std::size_t> views_overtaken_by_reset_{0};
   std::atomic<bool> stopping_{false};   // cancelUpdate(): cancel_ stays set
   std::atomic<int> resets_waiting_{0};  // resets that set cancel_ and wait for the fit
   FruitShapePipeline pipeline_;

@@ -39,8 +39,12 @@ bool fromRoiCloud(const sensor_msgs::PointCloud2& msg, const std::vector<std::in
 class FruitPublisher {
  public:
   FruitPublisher(ros::NodeHandle& nh, const std::string& map_frame, const std::string& superellipsoids_topic);
+  // Sends the superellipsoids and keeps the state for the markers and clouds (cheap); then
+  // sendVisuals() builds and sends those with a subscriber, from the latest state kept. A host
+  // that orders publish() with a reset under a lock calls sendVisuals() outside it.
   void publish(std::vector<FruitEstimate> fruits, SurfaceBlocks surface, const ros::Time& stamp);
   void publish(std::vector<FruitEstimate> fruits, PointList surface, const ros::Time& stamp);
+  void sendVisuals();
   // Marker and point cloud messages sent so far.
   std::size_t visualsBuilt() const;
 

@@ -7,10 +7,13 @@
 #include <fruit_shape_completion/shape_view_gain.h>
 
 #include <geometry_msgs/Transform.h>
+#include <ros/console.h>
 #include <octomap/octomap_types.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -41,12 +44,18 @@ class ShapeTargetRound {
   std::vector<octomap::point3d> points, directions;
   // To add to the view's utility: the predicted surface a camera at `origin` looking along `dir`
   // sees, lines of sight checked in `tree` (the planner's occupancy tree, its lock held). 0
-  // unless target_view_gain > 0.
+  // unless target_view_gain > 0, and 0 with a warning if it cannot be computed (out of memory):
+  // it runs on the planner's planning thread, which nothing may take down.
   template <typename OccupancyTree>
   double viewGain(const octomap::point3d& origin, const octomap::point3d& dir, const OccupancyTree& tree) const {
     if (!targets_ || targets_->gains.empty()) return 0.0;
-    return shapeViewGain(*targets_, Eigen::Vector3d(origin.x(), origin.y(), origin.z()),
-                         Eigen::Vector3d(dir.x(), dir.y(), dir.z()), occupiedCellsBlock(tree));
+    try {
+      return shapeViewGain(*targets_, Eigen::Vector3d(origin.x(), origin.y(), origin.z()),
+                           Eigen::Vector3d(dir.x(), dir.y(), dir.z()), occupiedCellsBlock(tree));
+    } catch (const std::exception& e) {
+      ROS_WARN_THROTTLE(10.0, "shape target view gain not computed (%s): the view is scored without it", e.what());
+      return 0.0;
+    }
   }
 
  private:
@@ -59,6 +68,10 @@ class RoiPlannerShapeEstimators {
   // planner_nh/<name>. Without the parameter there are none and every call does nothing.
   // Throws std::runtime_error naming a bad entry or parameter.
   RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh, const std::string& map_frame);
+  // Waits (at most 1 s) for insertView calls still running: upstream's planner deletes itself
+  // while its spinner may still be in a view callback, and a call here can wait for a camera
+  // frame or a transform.
+  ~RoiPlannerShapeEstimators();
   bool empty() const { return loader_.host().size() == 0; }
 
   // One view (read as toRoiView reads it). Returns once every estimator has it in its map; the
@@ -87,6 +100,10 @@ class RoiPlannerShapeEstimators {
   ShapeEstimatorLoader loader_;
   std::string map_frame_;
   std::atomic<std::size_t> views_skipped_{0}, indices_skipped_{0};
+  std::atomic<bool> closing_{false};
+  std::mutex calls_mutex_;
+  std::condition_variable calls_done_;
+  int calls_ = 0;  // insertView calls running; guarded by calls_mutex_
 };
 
 }  // namespace ros_io

@@ -84,6 +84,7 @@ FruitInput runInputStage(const FruitInputStage& stage, const ViewData& view) {
 void SuperellipsoidEstimator::insertView(const ViewData& view) { insertViewReporting(view); }
 
 FruitInput SuperellipsoidEstimator::insertViewReporting(const ViewData& view) {
+  const std::uint64_t resets_before = resets_.load();
   // The stage reads only the view and its own constant parameters: no lock while it runs.
   std::shared_ptr<const FruitInputStage> stage;
   {
@@ -93,13 +94,19 @@ FruitInput SuperellipsoidEstimator::insertViewReporting(const ViewData& view) {
   FruitInput input = runInputStage(*stage, view);
   if (input.ok()) {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
-    sightings_.addView(view.time, input.fruit, view.sensor_pose);
+    if (resets_.load() == resets_before) sightings_.addView(view.time, input.fruit, view.sensor_pose);
   }
   input.full.clear();  // the report keeps its counts, not its points
   input.mask.clear();
   bool full;
   {
     std::lock_guard<std::mutex> lock(pending_mutex_);
+    if (resets_.load() != resets_before) {  // reset() holds pending_mutex_ while it counts
+      ++views_overtaken_by_reset_;
+      input.fruit.clear();
+      input.error = "a reset came while the view was being inserted: not mapped";
+      return input;
+    }
     pending_.push_back({std::move(input.fruit), view.sensor_pose, input.error});
     input.fruit.clear();
     InputTotals& t = input_totals_;
@@ -188,6 +195,7 @@ EstimatorStatus SuperellipsoidEstimator::status() const {
     std::lock_guard<std::mutex> pending_lock(pending_mutex_);
     s.input = input_totals_;
     s.points_skipped += input_totals_.non_finite_points;
+    s.views_overtaken_by_reset = views_overtaken_by_reset_;
   }
   std::lock_guard<std::mutex> results_lock(results_mutex_);
   s.fruits = accepted_->size();
@@ -289,6 +297,8 @@ void SuperellipsoidEstimator::reset() {
   const std::unique_lock<std::mutex> fit_lock = cancelRunningFit();
   std::lock_guard<std::mutex> map_lock(map_mutex_);
   std::lock_guard<std::mutex> pending_lock(pending_mutex_);
+  ++resets_;  // views still in insertView are from before: they drop themselves, counted
+  views_overtaken_by_reset_ = 0;
   std::lock_guard<std::mutex> lock(results_mutex_);
   map_.clear();
   pipeline_.reset();

@@ -381,6 +381,10 @@ void FruitPublisher::publish(std::vector<FruitEstimate> fruits, SurfaceBlocks su
     v.state = std::move(state);
     v.stale.fill(true);
   }
+}
+
+void FruitPublisher::sendVisuals() {
+  Visuals& v = *visuals_;
   for (int t = 0; t < Visuals::kTopics; ++t)
     if (v.topics[t].getNumSubscribers() > 0) v.bringUpToDate(t);
 }

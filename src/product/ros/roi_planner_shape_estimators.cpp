@@ -1,6 +1,8 @@
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 
+#include <chrono>
+
 #include <ros/console.h>
 #include <tf2_eigen/tf2_eigen.h>
 
@@ -32,6 +34,18 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
                                            const std::vector<std::int32_t>& roi_indices,
                                            const geometry_msgs::Transform& transform, double time) {
   if (empty()) return;
+  {
+    std::lock_guard<std::mutex> lock(calls_mutex_);
+    if (closing_) return;
+    ++calls_;
+  }
+  struct Done {
+    RoiPlannerShapeEstimators* self;
+    ~Done() {
+      std::lock_guard<std::mutex> lock(self->calls_mutex_);
+      if (--self->calls_ == 0) self->calls_done_.notify_all();
+    }
+  } done{this};
   try {
     RoiView view;
     std::string error;
@@ -50,6 +64,13 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
     ++views_skipped_;
     ROS_ERROR("shape estimators: view dropped (%zu so far): %s", std::size_t(views_skipped_), e.what());
   }
+}
+
+RoiPlannerShapeEstimators::~RoiPlannerShapeEstimators() {
+  std::unique_lock<std::mutex> lock(calls_mutex_);
+  closing_ = true;
+  if (!calls_done_.wait_for(lock, std::chrono::seconds(1), [this] { return calls_ == 0; }))
+    ROS_WARN("shape estimators: unloaded while %d view call(s) still ran", calls_);
 }
 
 std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets() const {

@@ -143,16 +143,21 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     if (const int oversized = estimator_->lastPipelineStats().left_out.oversized; oversized > 0)
       ROS_WARN_THROTTLE(10.0, "%s: %d surface clusters hold more than cluster_max_size points and were not fitted "
                         "(fruits and leaves grown into one, or a cloud far denser than the map)", name_.c_str(), oversized);
-    // Read and publish in one step with reset(): a fit that a reset overtook stored nothing, so
-    // it publishes nothing after the reset's cleared state, never its own.
-    std::lock_guard<std::mutex> lock(publish_mutex_);
-    last_update_ = ros::WallTime::now().toSec();
-    // An update that stored no new results (no view since the last) publishes nothing: the
-    // topics are latched, and a row's markers and surface run to megabytes per message.
-    std::shared_ptr<const std::vector<FruitEstimate>> results = estimator_->sharedFruits();
-    if (results == published_) return;
-    published_ = std::move(results);
-    publisher_->publish(estimator_->estimates(), estimator_->surfaceBlocks(), ros::Time::now());
+    {
+      // Read and publish in one step with reset(): a fit that a reset overtook stored nothing, so
+      // it publishes nothing after the reset's cleared state, never its own.
+      std::lock_guard<std::mutex> lock(publish_mutex_);
+      last_update_ = ros::WallTime::now().toSec();
+      // An update that stored no new results (no view since the last) publishes nothing: the
+      // topics are latched, and a row's markers and surface run to megabytes per message.
+      std::shared_ptr<const std::vector<FruitEstimate>> results = estimator_->sharedFruits();
+      if (results == published_) return;
+      published_ = std::move(results);
+      publisher_->publish(estimator_->estimates(), estimator_->surfaceBlocks(), ros::Time::now());
+    }
+    // Outside the lock a reset takes: the markers and clouds (megabytes on a row) are built from
+    // the latest state kept, which after a reset is the reset's.
+    publisher_->sendVisuals();
   }
   void cancelUpdate() override {
     if (estimator_) estimator_->cancelUpdate();
@@ -169,13 +174,19 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void reset() override {
     check();
     if (camera_buffer_) camera_buffer_->clear();
-    std::lock_guard<std::mutex> lock(publish_mutex_);
+    std::unique_lock<std::mutex> lock(publish_mutex_);
     estimator_->reset();
     publisher_->publish({}, SurfaceBlocks(), ros::Time::now());
     published_ = estimator_->sharedFruits();  // the cleared results, published just now
-    fruit_cloud_non_finite_ = 0;  // counted since start or reset, as the estimator's counters
-    std::lock_guard<std::mutex> still_lock(still_mutex_);
-    rest_.reset();
+    // Counted since start or reset, as the estimator's counters.
+    for (auto* counter : {&fruit_cloud_non_finite_, &fallback_views_, &no_frame_, &no_tf_, &bad_frames_, &rest_no_tf_})
+      *counter = 0;
+    {
+      std::lock_guard<std::mutex> still_lock(still_mutex_);
+      rest_.reset();
+    }
+    lock.unlock();
+    publisher_->sendVisuals();  // empty: cheap
   }
   std::vector<std::pair<std::string, std::string>> diagnostics() const override {
     check();
@@ -186,6 +197,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"views", std::to_string(s.input.views)},
             {"views refused", std::to_string(s.views_refused)},
             {"views without fruit points", std::to_string(s.views_without_fruit)},
+            {"views overtaken by a reset (in insertView when it came; not mapped)", std::to_string(s.views_overtaken_by_reset)},
             {"views waiting for the map (integrated at the next update)", std::to_string(estimator_->pendingViews())},
             {"map blocks", std::to_string(s.blocks) + " of " + std::to_string(s.max_blocks)},
             {"map memory [MiB]", std::to_string(s.memory_mb)},
@@ -208,6 +220,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"  of which: no tf for the frame", std::to_string(no_tf_)},
             {"  of which: malformed frame", std::to_string(bad_frames_)},
             {"camera rests not taken without a planner: its last view stood there", std::to_string(rests_at_planner_pose_)},
+            {"camera frames without a planner and without a transform to the map (not mapped)", std::to_string(rest_no_tf_)},
             {"camera clouds not organized (ignored)", std::to_string(not_organized_)},
             {"camera clock jumps back (buffer cleared)", std::to_string(clock_jumps_)},
             {"camera frames too large for the buffer", std::to_string(too_large_)},
@@ -379,10 +392,16 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void integrateIfStill(const sensor_msgs::PointCloud2ConstPtr& msg) {
     Eigen::Isometry3d pose;
     try {
-      pose = tf2::transformToEigen(
-          tf_buffer_->lookupTransform(map_frame_, msg->header.frame_id, msg->header.stamp, ros::Duration(0.1)));
-    } catch (const tf2::TransformException&) {
-      ++no_tf_;
+      // Waits for a late transform only while transforms come: with none (a tf tree without the
+      // camera) every frame would hold a spinner thread for the whole wait.
+      const ros::Duration wait(rest_tf_ok_ ? 0.1 : 0.0);
+      pose = tf2::transformToEigen(tf_buffer_->lookupTransform(map_frame_, msg->header.frame_id, msg->header.stamp, wait));
+      rest_tf_ok_ = true;
+    } catch (const tf2::TransformException& e) {
+      rest_tf_ok_ = false;
+      const std::size_t n = ++rest_no_tf_;
+      ROS_WARN_THROTTLE(10.0, "%s: camera frame not mapped without a planner: no transform %s -> %s (%s; %zu frames so far)",
+                        name_.c_str(), msg->header.frame_id.c_str(), map_frame_.c_str(), e.what(), n);
       return;
     }
     {
@@ -579,7 +598,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   ros::Subscriber camera_;
   std::atomic<double> last_planner_view_{0.0};  // wall time [s]
   std::atomic<std::size_t> planner_views_{0}, frames_received_{0}, fallback_views_{0}, no_frame_{0}, no_tf_{0}, bad_frames_{0},
-      not_organized_{0}, clock_jumps_{0}, too_large_{0};
+      not_organized_{0}, clock_jumps_{0}, too_large_{0}, rest_no_tf_{0};
+  std::atomic<bool> rest_tf_ok_{true};  // the last lookup for a frame without a planner found its transform
   // An external detector's masks (camera_mask_topic), matched to frames by stamp.
   ros::Subscriber masks_sub_;
   std::mutex masks_mutex_;

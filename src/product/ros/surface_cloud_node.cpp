@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
     const auto& fruits = pipeline->update(pts);
     const std::size_t points = pts.size();
     publisher.publish(fruits, std::move(pts), msg->header.stamp);
+    publisher.sendVisuals();
     ROS_INFO("surface cloud: %zu points, %d clusters, %d fruits accepted (%.1f ms)", points,
              pipeline->lastStats().clusters, pipeline->lastStats().accepted, pipeline->lastStats().seconds * 1000);
   };
