@@ -61,11 +61,15 @@ void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::Diagnosti
     const std::size_t oom = host_.outOfMemoryDrops(i);
     status.add("views dropped out of memory", oom);
     const host::ShapeEstimatorHost::UpdateStatus fit = host_.updateStatus(i);
-    status.add("fits run beside the planner", fit.runs);
-    status.add("view updates coalesced into a later fit", fit.coalesced);
-    status.add("last fit duration [ms]", 1e3 * fit.last_seconds);
-    status.add("seconds since the last fit finished", fit.age_seconds < 0 ? std::string("never") : std::to_string(fit.age_seconds));
-    status.add("fit running", fit.running ? "yes" : "no");
+    // The worker's runs, one per view the planner inserted (coalesced while one runs): a run with
+    // nothing new to fit (a view without fruit) returns at once; the plugin's own updates (fruit
+    // clouds, the camera at rest, load_map) are not among them.
+    status.add("updates run for the planner's views (fits, or nothing new to fit)", fit.runs);
+    status.add("view updates coalesced into a later update", fit.coalesced);
+    status.add("last update duration [ms]", 1e3 * fit.last_seconds);
+    status.add("seconds since the last update finished",
+               fit.age_seconds < 0 ? std::string("never") : std::to_string(fit.age_seconds));
+    status.add("update running", fit.running ? "yes" : "no");
     status.add("insertView latency, last 256 views: median [ms]", host_.insertLatencyMs(0.5));
     status.add("insertView latency, last 256 views: p95 [ms]", host_.insertLatencyMs(0.95));
     status.add("insertView latency, last 256 views: max [ms]", host_.insertLatencyMs(1.0));
