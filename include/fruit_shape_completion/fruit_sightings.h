@@ -53,6 +53,10 @@ class FruitSightingLog {
   // fruits: matched to no view, their counts kept for a save (a fruit a leaf grew into).
   void update(const std::vector<FruitEstimate>& fruits, const std::vector<FruitEstimate>& not_accepted = {});
   const std::map<int, FruitSightings>& sightings() const { return sightings_; }
+  // Sets each accepted fruit's views from the log and its volume interval from them: a fruit seen
+  // in few keeps their depth errors (volume_interval.h). One the log matched no view to (a
+  // loaded map's fruit the saved counts did not cover, until a view sees it) reads as seen in one.
+  void countViews(std::vector<FruitEstimate>* fruits) const;
   // Clears the log (as clear()) and keeps a loaded map's records: fruits fitted for the first
   // time start from the counts of the records within kCarryRadius of their centres (nearest
   // pairs first, each record used once).

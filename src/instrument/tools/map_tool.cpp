@@ -7,11 +7,9 @@
 #include <fruit_shape_completion/fruit_shape_pipeline.h>
 #include <fruit_shape_completion/fruit_sightings.h>
 #include <fruit_shape_completion/tsdf_surface.h>
-#include <fruit_shape_completion/volume_interval.h>
 
 #include "command_line.h"
 
-#include <algorithm>
 #include <iostream>
 #include <map>
 
@@ -72,15 +70,8 @@ int main(int argc, char** argv) {
       FruitSightingLog log;
       log.carryOver(std::move(carried));
       log.update(fruits);
+      log.countViews(&fruits);
       seen = log.sightings();
-      for (auto& f : fruits) {
-        if (!f.accepted) continue;
-        const auto it = seen.find(f.id);
-        f.views = std::max(1, it == seen.end() ? 0 : it->second.views);
-        const VolumeInterval ci = volumeInterval90(f);
-        f.volume_lo = ci.lo;
-        f.volume_hi = ci.hi;
-      }
     }
   }
   if (!export_out.empty()) {

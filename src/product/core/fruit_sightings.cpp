@@ -1,4 +1,5 @@
 #include <fruit_shape_completion/fruit_sightings.h>
+#include <fruit_shape_completion/volume_interval.h>
 
 #include <algorithm>
 #include <string>
@@ -170,25 +171,41 @@ void FruitSightingLog::update(const std::vector<FruitEstimate>& fruits, const st
   alive_.clear();
   for (const auto* list : {&fruits, &not_accepted})
     for (const auto& f : *list) alive_.insert(f.id);
+  // New fruits (no counts yet), before a loaded map's records give some of them counts.
+  std::vector<char> is_new(fruits.size(), 0);
   std::vector<const FruitEstimate*> fresh;
-  for (const auto& f : fruits)
-    if (f.accepted && !sightings_.count(f.id) && f.shape.t.allFinite()) fresh.push_back(&f);
+  for (std::size_t i = 0; i < fruits.size(); ++i) {
+    const FruitEstimate& f = fruits[i];
+    if (!f.accepted || sightings_.count(f.id)) continue;
+    is_new[i] = 1;
+    if (f.shape.t.allFinite()) fresh.push_back(&f);
+  }
   if (!unclaimed_.empty() && !fresh.empty()) claimCarried(fresh);
-  for (const auto& f : fruits) {
+  for (std::size_t i = 0; i < fruits.size(); ++i) {
+    const FruitEstimate& f = fruits[i];
     if (!f.accepted) continue;
     if (f.shape.t.allFinite()) centers_[f.id] = f.shape.t;
-    auto it = sightings_.find(f.id);
-    const bool is_new = it == sightings_.end() || std::find(fresh.begin(), fresh.end(), &f) != fresh.end();
-    if (it == sightings_.end()) it = sightings_.emplace(f.id, FruitSightings()).first;
-    if (is_new)  // the views that found it may already be matched
+    FruitSightings& s = sightings_[f.id];
+    if (is_new[i])  // the views that found it may already be matched
       for (const auto& v : kept_)
-        if (saw(v, f)) record(v, f.id, &it->second);
+        if (saw(v, f)) record(v, f.id, &s);
     for (const auto& v : pending_)
-      if (saw(v, f)) record(v, f.id, &it->second);
+      if (saw(v, f)) record(v, f.id, &s);
   }
   for (auto& v : pending_) kept_.push_back(std::move(v));
   pending_.clear();
   while (kept_.size() > kept_views_) kept_.pop_front();
+}
+
+void FruitSightingLog::countViews(std::vector<FruitEstimate>* fruits) const {
+  for (auto& f : *fruits) {
+    if (!f.accepted) continue;
+    const auto it = sightings_.find(f.id);
+    f.views = std::max(1, it == sightings_.end() ? 0 : it->second.views);
+    const VolumeInterval ci = volumeInterval90(f);
+    f.volume_lo = ci.lo;
+    f.volume_hi = ci.hi;
+  }
 }
 
 void FruitSightingLog::carryOver(std::vector<CarriedSightings> carried) {

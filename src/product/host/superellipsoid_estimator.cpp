@@ -2,7 +2,6 @@
 
 #include <fruit_shape_completion/atomic_file.h>
 #include <fruit_shape_completion/fruit_report.h>
-#include <fruit_shape_completion/volume_interval.h>
 
 #include <algorithm>
 #include <chrono>
@@ -244,17 +243,7 @@ void SuperellipsoidEstimator::update() {
   {
     std::lock_guard<std::mutex> lock(sightings_mutex_);
     sightings_.update(accepted, rejected);
-    // Counted views: a fruit seen in few keeps their depth errors, and its interval says so
-    // (volume_interval.h). One the log matched no view to (a loaded map's fruit the saved
-    // counts did not cover, until a view sees it) reads as seen in one.
-    const std::map<int, FruitSightings>& seen = sightings_.sightings();
-    for (auto& f : accepted) {
-      const auto it = seen.find(f.id);
-      f.views = std::max(1, it == seen.end() ? 0 : it->second.views);
-      const VolumeInterval ci = volumeInterval90(f);
-      f.volume_lo = ci.lo;
-      f.volume_hi = ci.hi;
-    }
+    sightings_.countViews(&accepted);
   }
   std::lock_guard<std::mutex> lock(results_mutex_);
   accepted_ = std::make_shared<const std::vector<FruitEstimate>>(std::move(accepted));
