@@ -26,6 +26,10 @@ struct ShapeTargetParams {
   double view_gain = 1.0;
   double view_fov_deg = 60.0;    // the cone a view sees (full angle): the camera's narrower FOV
   double view_max_range = 1.0;   // [m] predicted surface farther than this is not counted
+  // [m] A view whose camera would stand this close to a cell the planner's map holds occupied
+  // gains nothing from predicted surface: the plant goes on beyond what the map has seen, and
+  // moves to views in among it run into the unseen part. 0: no such check.
+  double view_clearance = 0.15;
   void validate() const;    // throws std::invalid_argument naming the first bad value
 };
 
@@ -37,6 +41,7 @@ struct ShapeTargets {
   // surface it stands for); empty: no view gain. The cone a view sees them in.
   std::vector<double> gains;
   double view_cos_half_angle = 1.0, view_max_range = 0.0;
+  double view_clearance = 0.0;  // [m] ShapeTargetParams::view_clearance
 };
 
 // The fitted surface's outward unit normal at its point s.

@@ -15,12 +15,17 @@ namespace fruit_shape_completion {
 // True if the planner's map blocks the line from `from` to `to` (an occupied cell on it).
 using RayBlocked = std::function<bool(const Eigen::Vector3d& from, const Eigen::Vector3d& to)>;
 
+// True if the planner's map holds an occupied cell within `radius` of `at`.
+using OccupiedNear = std::function<bool(const Eigen::Vector3d& at, double radius)>;
+
 // The summed gains of the targets a camera at `origin` looking along `view_dir` would see:
 // inside the targets' view cone and range, on surface facing the camera (where a target has a
 // direction) and, with `blocked`, not hidden. At most `max_rays` lines are traced, spread evenly
-// over the candidates; the others count at the traced ones' clear share. 0 without gains.
+// over the candidates; the others count at the traced ones' clear share. 0 without gains, and 0
+// where `occupied_near` finds the map's plant within the targets' view_clearance of `origin`.
 double shapeViewGain(const ShapeTargets& targets, const Eigen::Vector3d& origin, const Eigen::Vector3d& view_dir,
-                     const RayBlocked& blocked = nullptr, int max_rays = 32);
+                     const RayBlocked& blocked = nullptr, const OccupiedNear& occupied_near = nullptr,
+                     int max_rays = 32);
 
 // An Eigen point as OctoMap's single-precision point (the planner's octree speaks octomap).
 inline octomap::point3d toOctomapPoint(const Eigen::Vector3d& v) {
@@ -37,6 +42,24 @@ RayBlocked occupiedCellsBlock(const OccupancyTree& tree) {
     for (const auto& k : ray) {
       const auto* n = tree.search(k);
       if (n != nullptr && tree.isNodeOccupied(n)) return true;
+    }
+    return false;
+  };
+}
+
+// Occupied cells of an octomap occupancy tree near a point (the caller holds its lock): any
+// occupied leaf, of whatever size, whose box comes within the radius.
+template <typename OccupancyTree>
+OccupiedNear occupiedCellsNear(const OccupancyTree& tree) {
+  return [&tree](const Eigen::Vector3d& at, double radius) {
+    const Eigen::Vector3d r = Eigen::Vector3d::Constant(radius);
+    for (auto it = tree.begin_leafs_bbx(toOctomapPoint(at - r), toOctomapPoint(at + r)), end = tree.end_leafs_bbx();
+         it != end; ++it) {
+      if (!tree.isNodeOccupied(*it)) continue;
+      const octomap::point3d c = it.getCoordinate();
+      const Eigen::Vector3d centre(c.x(), c.y(), c.z());
+      const Eigen::Vector3d half = Eigen::Vector3d::Constant(0.5 * it.getSize());
+      if ((at.cwiseMax(centre - half).cwiseMin(centre + half) - at).norm() <= radius) return true;
     }
     return false;
   };

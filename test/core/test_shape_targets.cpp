@@ -119,7 +119,9 @@ TEST(ShapeTargets, BadParametersAreRefusedByName) {
     EXPECT_NE(std::string(e.what()).find("target_offset"), std::string::npos);
   }
   for (auto bad : {+[](ShapeTargetParams& q) { q.view_gain = -1.0; }, +[](ShapeTargetParams& q) { q.view_fov_deg = 180.0; },
-                   +[](ShapeTargetParams& q) { q.view_max_range = 0.0; }}) {
+                   +[](ShapeTargetParams& q) { q.view_max_range = 0.0; },
+                   +[](ShapeTargetParams& q) { q.view_clearance = -0.1; },
+                   +[](ShapeTargetParams& q) { q.view_clearance = NAN; }}) {
     p = ShapeTargetParams();
     bad(p);
     EXPECT_THROW(p.validate(), std::invalid_argument);

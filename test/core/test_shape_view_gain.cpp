@@ -99,3 +99,28 @@ TEST(ShapeViewGain, LinesOfSightThroughAnOccupiedMapCountOnlyWhereClear) {
       tree.updateNode(octomap::point3d(0.01f * i + 0.005f, 0.01f * j + 0.005f, 0.305f), true);
   EXPECT_EQ(shapeViewGain(t, below, up, occupiedCellsBlock(tree)), 0.0);
 }
+
+TEST(ShapeViewGain, AViewAmongTheMappedPlantGainsNothingWithAClearance) {
+  const FruitEstimate f = upperHalfSeen();
+  ShapeTargetParams p = withGain(1.0);
+  p.view_clearance = 0.1;
+  const ShapeTargets t = selectShapeTargets({f}, 300, p);
+  ASSERT_DOUBLE_EQ(t.view_clearance, 0.1);
+  const Eigen::Vector3d below(0, 0, 0.1), up(0, 0, 1);
+  const double open = shapeViewGain(t, below, up);
+  ASSERT_GT(open, 0.0);
+  octomap::OcTree tree(0.01);
+  // An occupied cell 12 cm beside the camera, out of the line of sight: farther than the clearance.
+  tree.updateNode(octomap::point3d(0.125f, 0.005f, 0.105f), true);
+  EXPECT_DOUBLE_EQ(shapeViewGain(t, below, up, occupiedCellsBlock(tree), occupiedCellsNear(tree)), open);
+  // Its neighbour, whose box comes to 9 cm: within it, and the view gains nothing.
+  tree.updateNode(octomap::point3d(0.095f, 0.005f, 0.105f), true);
+  EXPECT_EQ(shapeViewGain(t, below, up, occupiedCellsBlock(tree), occupiedCellsNear(tree)), 0.0);
+  // Free cells nearby do not count, and clearance 0 checks nothing.
+  octomap::OcTree free_only(0.01);
+  free_only.updateNode(octomap::point3d(0.005f, 0.005f, 0.105f), false);
+  EXPECT_DOUBLE_EQ(shapeViewGain(t, below, up, nullptr, occupiedCellsNear(free_only)), open);
+  p.view_clearance = 0.0;
+  const ShapeTargets unchecked = selectShapeTargets({f}, 300, p);
+  EXPECT_DOUBLE_EQ(shapeViewGain(unchecked, below, up, nullptr, occupiedCellsNear(tree)), open);
+}

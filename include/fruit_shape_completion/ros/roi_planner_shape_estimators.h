@@ -51,7 +51,8 @@ class ShapeTargetRound {
     if (!targets_ || targets_->gains.empty()) return 0.0;
     try {
       return shapeViewGain(*targets_, Eigen::Vector3d(origin.x(), origin.y(), origin.z()),
-                           Eigen::Vector3d(dir.x(), dir.y(), dir.z()), occupiedCellsBlock(tree));
+                           Eigen::Vector3d(dir.x(), dir.y(), dir.z()), occupiedCellsBlock(tree),
+                           occupiedCellsNear(tree));
     } catch (const std::exception& e) {
       ROS_WARN_THROTTLE(10.0, "shape target view gain not computed (%s): the view is scored without it", e.what());
       return 0.0;

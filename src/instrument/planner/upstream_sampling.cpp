@@ -199,6 +199,7 @@ SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& wo
   };
 
   const RayBlocked blocked = occupiedCellsBlock(tree);
+  const OccupiedNear occupied_near = occupiedCellsNear(tree);
   // RoiContourSampler (with the integration patch's extra targets in its pool).
   PointList pool = roiContourPool(tree, roi_keys);
   const std::size_t contour_count = pool.size();
@@ -220,7 +221,7 @@ SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& wo
       if (!workspace.contains(v.origin)) continue;
       v = score(v);
       // The integration patch: the predicted surface the view would see (0 without view gains).
-      v.shape_gain = shapeViewGain(extra, v.origin, v.direction, blocked);
+      v.shape_gain = shapeViewGain(extra, v.origin, v.direction, blocked, occupied_near);
       v.utility += v.shape_gain;
       out.roi.push_back(v);
     }

@@ -177,6 +177,9 @@ int main(int argc, char** argv) {
   app.add_option("--target-view-max-range", estimator.targets.view_max_range,
                  "[m] predicted surface farther from a view is not counted")
       ->check(CLI::Range(0.05, 10.0))->capture_default_str();
+  app.add_option("--target-view-clearance", estimator.targets.view_clearance,
+                 "[m] a view this close to the planner's mapped plant gains nothing from predicted surface; 0: no check")
+      ->check(CLI::Range(0.0, 0.5))->capture_default_str();
   app.add_flag_callback("--any-side", [&] { estimator.targets.view_side = false; },
                         "hand over no viewing directions: the planner views shape targets from any side");
   app.add_flag_callback("--no-noise", [&] { base.depth_noise = false; }, "noise-free depth");
@@ -374,7 +377,8 @@ int main(int argc, char** argv) {
                    {"offset_m", estimator.targets.offset},
                    {"view_side", estimator.targets.view_side},
                    {"view_gain", estimator.targets.view_gain}, {"view_fov_deg", estimator.targets.view_fov_deg},
-                   {"view_max_range_m", estimator.targets.view_max_range}}},
+                   {"view_max_range_m", estimator.targets.view_max_range},
+                   {"view_clearance_m", estimator.targets.view_clearance}}},
       {"planner", "upstream"},
       {"input", input_name},
       {"input_stage", {{"depth_edges", estimator.input.drop_depth_edges}, {"outliers", estimator.input.remove_outliers},

@@ -19,6 +19,8 @@ void ShapeTargetParams::validate() const {
     throw std::invalid_argument("target_view_fov_deg must be in (0, 180), not " + std::to_string(view_fov_deg));
   if (!(std::isfinite(view_max_range) && view_max_range > 0.0))
     throw std::invalid_argument("target_view_max_range must be > 0 m, not " + std::to_string(view_max_range));
+  if (!(std::isfinite(view_clearance) && view_clearance >= 0.0 && view_clearance <= 0.5))
+    throw std::invalid_argument("target_view_clearance must be in [0, 0.5] m, not " + std::to_string(view_clearance));
 }
 
 double seenCoverage(const FruitEstimate& fruit, int surface_samples) {
@@ -51,6 +53,7 @@ ShapeTargets selectShapeTargets(const std::vector<FruitEstimate>& fruits, int su
   if (params.view_gain > 0.0) {
     targets.view_cos_half_angle = std::cos(0.5 * params.view_fov_deg * M_PI / 180.0);
     targets.view_max_range = params.view_max_range;
+    targets.view_clearance = params.view_clearance;
   }
   auto handsOver = [&](const FruitEstimate& f) {
     return f.accepted && !f.missing_surface.empty() &&

@@ -6,7 +6,7 @@
 namespace fruit_shape_completion {
 
 double shapeViewGain(const ShapeTargets& targets, const Eigen::Vector3d& origin, const Eigen::Vector3d& view_dir,
-                     const RayBlocked& blocked, int max_rays) {
+                     const RayBlocked& blocked, const OccupiedNear& occupied_near, int max_rays) {
   const std::size_t n = targets.points.size();
   if (targets.gains.size() != n || n == 0 || !origin.allFinite() || !view_dir.allFinite()) return 0.0;
   const double len = view_dir.norm();
@@ -24,7 +24,9 @@ double shapeViewGain(const ShapeTargets& targets, const Eigen::Vector3d& origin,
     seen.push_back(i);
     in_cone += targets.gains[i];
   }
-  if (!blocked || seen.empty() || in_cone <= 0.0) return in_cone;
+  if (seen.empty() || in_cone <= 0.0) return 0.0;
+  if (occupied_near && targets.view_clearance > 0.0 && occupied_near(origin, targets.view_clearance)) return 0.0;
+  if (!blocked) return in_cone;
   const std::size_t rays = std::min<std::size_t>(seen.size(), static_cast<std::size_t>(std::max(1, max_rays)));
   double traced = 0.0, clear = 0.0;
   for (std::size_t r = 0; r < rays; ++r) {

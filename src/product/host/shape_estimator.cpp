@@ -231,6 +231,7 @@ void appendChecked(const ShapeTargets& t, ShapeTargets* all) {
   if (gained && all->view_max_range <= 0.0) {  // the first estimator's cone: one camera
     all->view_cos_half_angle = t.view_cos_half_angle;
     all->view_max_range = t.view_max_range;
+    all->view_clearance = t.view_clearance;
   }
   for (std::size_t k = 0; k < t.points.size(); ++k) {
     if (!t.points[k].allFinite()) continue;

@@ -135,6 +135,7 @@ host::SuperellipsoidEstimatorParams readEstimatorParams(const ros::NodeHandle& n
   read("target_view_gain", p.targets.view_gain);
   read("target_view_fov_deg", p.targets.view_fov_deg);
   read("target_view_max_range", p.targets.view_max_range);
+  read("target_view_clearance", p.targets.view_clearance);
   rejectUnknownKeys(nh, known);
   try {
     p.input.validate();

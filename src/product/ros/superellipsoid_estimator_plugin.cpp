@@ -478,6 +478,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     assign(c.target_view_gain, p.targets.view_gain);
     assign(c.target_view_fov_deg, p.targets.view_fov_deg);
     assign(c.target_view_max_range, p.targets.view_max_range);
+    assign(c.target_view_clearance, p.targets.view_clearance);
     assign(c.red_min_hue, p.input.red_test.min_hue);
     assign(c.red_max_hue, p.input.red_test.max_hue);
     assign(c.red_min_saturation, p.input.red_test.min_saturation);
