@@ -8,6 +8,7 @@
 #include <octomap/OcTreeKey.h>
 #include <octomap/octomap_types.h>
 
+#include <cmath>
 #include <functional>
 
 namespace fruit_shape_completion {
@@ -48,13 +49,18 @@ RayBlocked occupiedCellsBlock(const OccupancyTree& tree) {
 }
 
 // Occupied cells of an octomap occupancy tree near a point (the caller holds its lock): any
-// occupied leaf, of whatever size, whose box comes within the radius.
+// occupied leaf, of whatever size, whose box comes within the radius. Near the edge of the
+// tree's range (or at a non-finite point) it answers true, as a line leaving the tree is blocked.
 template <typename OccupancyTree>
 OccupiedNear occupiedCellsNear(const OccupancyTree& tree) {
   return [&tree](const Eigen::Vector3d& at, double radius) {
+    if (!at.allFinite() || !std::isfinite(radius)) return true;
+    if (radius < 0.0) return false;
     const Eigen::Vector3d r = Eigen::Vector3d::Constant(radius);
-    for (auto it = tree.begin_leafs_bbx(toOctomapPoint(at - r), toOctomapPoint(at + r)), end = tree.end_leafs_bbx();
-         it != end; ++it) {
+    octomap::OcTreeKey lo, hi;
+    if (!tree.coordToKeyChecked(toOctomapPoint(at - r), lo) || !tree.coordToKeyChecked(toOctomapPoint(at + r), hi))
+      return true;
+    for (auto it = tree.begin_leafs_bbx(lo, hi), end = tree.end_leafs_bbx(); it != end; ++it) {
       if (!tree.isNodeOccupied(*it)) continue;
       const octomap::point3d c = it.getCoordinate();
       const Eigen::Vector3d centre(c.x(), c.y(), c.z());

@@ -121,6 +121,7 @@ TEST(ShapeTargets, BadParametersAreRefusedByName) {
   for (auto bad : {+[](ShapeTargetParams& q) { q.view_gain = -1.0; }, +[](ShapeTargetParams& q) { q.view_fov_deg = 180.0; },
                    +[](ShapeTargetParams& q) { q.view_max_range = 0.0; },
                    +[](ShapeTargetParams& q) { q.view_clearance = -0.1; },
+                   +[](ShapeTargetParams& q) { q.view_clearance = 0.6; },
                    +[](ShapeTargetParams& q) { q.view_clearance = NAN; }}) {
     p = ShapeTargetParams();
     bad(p);

@@ -113,9 +113,30 @@ TEST(ShapeViewGain, AViewAmongTheMappedPlantGainsNothingWithAClearance) {
   // An occupied cell 12 cm beside the camera, out of the line of sight: farther than the clearance.
   tree.updateNode(octomap::point3d(0.125f, 0.005f, 0.105f), true);
   EXPECT_DOUBLE_EQ(shapeViewGain(t, below, up, occupiedCellsBlock(tree), occupiedCellsNear(tree)), open);
-  // Its neighbour, whose box comes to 9 cm: within it, and the view gains nothing.
+  // One inside the box searched but outside the sphere: its box comes to 11.3 cm.
+  tree.updateNode(octomap::point3d(0.085f, 0.085f, 0.105f), true);
+  EXPECT_DOUBLE_EQ(shapeViewGain(t, below, up, occupiedCellsBlock(tree), occupiedCellsNear(tree)), open);
+  // A cell whose box comes to 9 cm: within it, and the view gains nothing.
   tree.updateNode(octomap::point3d(0.095f, 0.005f, 0.105f), true);
   EXPECT_EQ(shapeViewGain(t, below, up, occupiedCellsBlock(tree), occupiedCellsNear(tree)), 0.0);
+  // The box counts, not the centre: a cell from 10 to 11 cm (centre 10.5 cm) is within 10.4 cm.
+  octomap::OcTree edge(0.01);
+  edge.updateNode(octomap::point3d(0.105f, 0.005f, 0.105f), true);
+  EXPECT_TRUE(occupiedCellsNear(edge)(below, 0.104));
+  EXPECT_FALSE(occupiedCellsNear(edge)(below, 0.099));
+  // A pruned 2 cm leaf (eight occupied children) counts by its whole box, 10 cm away, though its
+  // centre is 11 cm away and a 1 cm box around that centre 10.5 cm.
+  octomap::OcTree coarse(0.01);
+  for (float dx : {0.105f, 0.115f})
+    for (float dy : {0.005f, 0.015f})
+      for (float dz : {0.105f, 0.115f}) coarse.updateNode(octomap::point3d(dx, dy, dz), true);
+  coarse.prune();
+  ASSERT_EQ(coarse.getNumLeafNodes(), 1u);
+  EXPECT_TRUE(occupiedCellsNear(coarse)(below, 0.104));
+  EXPECT_FALSE(occupiedCellsNear(coarse)(below, 0.099));
+  // Beyond the tree's range (327 m at 1 cm), or at a non-finite point, a camera counts as crowded.
+  EXPECT_TRUE(occupiedCellsNear(edge)(Eigen::Vector3d(400, 0, 0), 0.1));
+  EXPECT_TRUE(occupiedCellsNear(edge)(Eigen::Vector3d(NAN, 0, 0), 0.1));
   // Free cells nearby do not count, and clearance 0 checks nothing.
   octomap::OcTree free_only(0.01);
   free_only.updateNode(octomap::point3d(0.005f, 0.005f, 0.105f), false);

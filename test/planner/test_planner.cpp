@@ -685,6 +685,7 @@ TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAft
   ASSERT_EQ(fruits->size(), 1u);
   ASSERT_FALSE(targets->points.empty());
   EXPECT_EQ(targets->gains.size(), targets->points.size());
+  EXPECT_DOUBLE_EQ(targets->view_clearance, ShapeTargetParams().view_clearance);
   // Asked again without an update: the same snapshots, nothing copied or checked again.
   EXPECT_EQ(host.sharedFruits(0), fruits);
   EXPECT_EQ(host.sharedViewTargets(), targets);
@@ -727,6 +728,9 @@ TEST(ShapeEstimatorHost, TargetsWithNonFiniteValuesAreFixedOnceNotPassedOn) {
       const double nan = std::numeric_limits<double>::quiet_NaN();
       t->points = {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(nan, 0, 1), Eigen::Vector3d(0, 1, 1)};
       t->directions = {Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(nan, 0, 0)};
+      t->gains = {0.1, 0.1, 0.1};
+      t->view_max_range = 1.0;
+      t->view_clearance = 50.0;  // would scan the whole map for every view
       return t;
     }();
   };
@@ -737,6 +741,7 @@ TEST(ShapeEstimatorHost, TargetsWithNonFiniteValuesAreFixedOnceNotPassedOn) {
   EXPECT_EQ(fixed->points[1], Eigen::Vector3d(0, 1, 1));
   EXPECT_EQ(fixed->directions[0], Eigen::Vector3d(1, 0, 0));
   EXPECT_EQ(fixed->directions[1], Eigen::Vector3d::Zero());
+  EXPECT_DOUBLE_EQ(fixed->view_clearance, 0.5);
   EXPECT_NE(fixed, host.estimator(0).sharedViewTargets());
   EXPECT_EQ(host.sharedViewTargets(), fixed);  // fixed once per snapshot
 }

@@ -265,3 +265,34 @@ TEST(UpstreamSampling, PredictedSurfaceAViewSeesAddsItsGainToTheUtilityUnlessThe
   ASSERT_FALSE(hidden.roi.empty());
   for (const auto& v : hidden.roi) EXPECT_EQ(v.shape_gain, 0.0);
 }
+
+TEST(UpstreamSampling, AViewAmongTheMappedPlantKeepsItsOwnUtilityButGainsNothingFromPredictedSurface) {
+  // One occupied cell 40 cm out on the side the target faces: views sampled within the 15 cm
+  // clearance of it gain nothing from the target, the others its 0.4; all keep upstream's utility.
+  RoiOcTree tree(kRes);
+  setFree(&tree, 0, 0, 0);
+  setOccupied(&tree, 30, 60, 50);  // the cell [0.30, 0.31] x [0.60, 0.61] x [0.50, 0.51]
+  const Eigen::Vector3d target(0.305, 0.205, 0.505), facing(0, 1, 0);
+  ShapeTargets t = targetsAt({target}, {facing});
+  t.gains = {0.4};
+  t.view_cos_half_angle = std::cos(0.5);
+  t.view_max_range = 1.0;
+  t.view_clearance = 0.15;
+  UpstreamSamplingParams p;
+  p.expl_samples = 0;
+  std::mt19937 rng(5);
+  const SampledCandidates s = sampleUpstream(tree, everywhere(), t, target, p, rng);
+  ASSERT_EQ(s.roi.size(), 100u);
+  const Eigen::Vector3d cell_min(0.30, 0.60, 0.50), cell_max(0.31, 0.61, 0.51);
+  int crowded = 0, clear = 0;
+  for (const auto& v : s.roi) {
+    const double to_cell = (v.origin.cwiseMax(cell_min).cwiseMin(cell_max) - v.origin).norm();
+    if (std::abs(to_cell - 0.15) < 1e-3) continue;  // float rounding at the boundary
+    const bool near = to_cell < 0.15;
+    (near ? crowded : clear) += 1;
+    EXPECT_DOUBLE_EQ(v.shape_gain, near ? 0.0 : 0.4) << "camera " << to_cell << " m from the cell";
+    EXPECT_NEAR(v.utility, v.gain - 0.2 * (v.origin - target).norm() + v.shape_gain, 1e-12);
+  }
+  EXPECT_GT(crowded, 5);
+  EXPECT_GT(clear, 5);
+}

@@ -44,7 +44,8 @@ class ShapeTargetRound {
   std::vector<octomap::point3d> points, directions;
   // To add to the view's utility: the predicted surface a camera at `origin` looking along `dir`
   // sees, lines of sight checked in `tree` (the planner's occupancy tree, its lock held). 0
-  // unless target_view_gain > 0, and 0 with a warning if it cannot be computed (out of memory):
+  // unless target_view_gain > 0, 0 for a camera within target_view_clearance of an occupied cell
+  // of `tree`, and 0 with a warning if it cannot be computed (out of memory):
   // it runs on the planner's planning thread, which nothing may take down.
   template <typename OccupancyTree>
   double viewGain(const octomap::point3d& origin, const octomap::point3d& dir, const OccupancyTree& tree) const {

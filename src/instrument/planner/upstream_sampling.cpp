@@ -220,7 +220,8 @@ SampledCandidates sampleUpstream(const RoiOcTree& tree, const sim::Workspace& wo
       v.direction = (v.target - v.origin).normalized();
       if (!workspace.contains(v.origin)) continue;
       v = score(v);
-      // The integration patch: the predicted surface the view would see (0 without view gains).
+      // The integration patch: the predicted surface the view would see (0 without view gains,
+      // 0 for a camera within the targets' clearance of an occupied cell).
       v.shape_gain = shapeViewGain(extra, v.origin, v.direction, blocked, occupied_near);
       v.utility += v.shape_gain;
       out.roi.push_back(v);
