@@ -42,11 +42,29 @@ ShapeTargets targetsAt(const PointList& points, const PointList& directions) {
   return t;
 }
 
+// One target facing +y, worth 0.4 to a view that sees it (60 degree cone, 1 m).
+ShapeTargets loneTargetWithGain(const Eigen::Vector3d& target, double clearance) {
+  ShapeTargets t = targetsAt({target}, {Eigen::Vector3d(0, 1, 0)});
+  t.gains = {0.4};
+  t.view_cos_half_angle = std::cos(0.5);
+  t.view_max_range = 1.0;
+  t.view_clearance = clearance;
+  return t;
+}
+
 sim::Workspace everywhere() {
   sim::Workspace w;
   w.box_min = Eigen::Vector3d::Constant(-5);
   w.box_max = Eigen::Vector3d::Constant(5);
   return w;
+}
+
+// The ROI candidates alone (no exploration samples), seed 5, the camera at `camera`.
+SampledCandidates sampleRoiOnly(const RoiOcTree& tree, const ShapeTargets& t, const Eigen::Vector3d& camera) {
+  UpstreamSamplingParams p;
+  p.expl_samples = 0;
+  std::mt19937 rng(5);
+  return sampleUpstream(tree, everywhere(), t, camera, p, rng);
 }
 
 }  // namespace
@@ -238,15 +256,9 @@ TEST(UpstreamSampling, PredictedSurfaceAViewSeesAddsItsGainToTheUtilityUnlessThe
   // occupied cells stands around it.
   RoiOcTree tree(kRes);
   setFree(&tree, 0, 0, 0);
-  const Eigen::Vector3d target(0.305, 0.205, 0.505), facing(0, 1, 0);
-  ShapeTargets t = targetsAt({target}, {facing});
-  t.gains = {0.4};
-  t.view_cos_half_angle = std::cos(0.5);
-  t.view_max_range = 1.0;
-  UpstreamSamplingParams p;
-  p.expl_samples = 0;
-  std::mt19937 rng(5);
-  const SampledCandidates s = sampleUpstream(tree, everywhere(), t, target, p, rng);
+  const Eigen::Vector3d target(0.305, 0.205, 0.505);
+  const ShapeTargets t = loneTargetWithGain(target, 0.0);
+  const SampledCandidates s = sampleRoiOnly(tree, t, target);
   ASSERT_EQ(s.roi.size(), 100u);
   for (const auto& v : s.roi) {
     EXPECT_DOUBLE_EQ(v.shape_gain, 0.4);
@@ -260,8 +272,7 @@ TEST(UpstreamSampling, PredictedSurfaceAViewSeesAddsItsGainToTheUtilityUnlessThe
     for (int y = 19; y <= 23; ++y) setOccupied(&tree, x, y, 55), setOccupied(&tree, x, y, 45);
   for (int z = 45; z <= 55; ++z)
     for (int y = 19; y <= 23; ++y) setOccupied(&tree, 25, y, z), setOccupied(&tree, 35, y, z);
-  std::mt19937 rng2(5);
-  const SampledCandidates hidden = sampleUpstream(tree, everywhere(), t, target, p, rng2);
+  const SampledCandidates hidden = sampleRoiOnly(tree, t, target);
   ASSERT_FALSE(hidden.roi.empty());
   for (const auto& v : hidden.roi) EXPECT_EQ(v.shape_gain, 0.0);
 }
@@ -272,16 +283,8 @@ TEST(UpstreamSampling, AViewAmongTheMappedPlantKeepsItsOwnUtilityButGainsNothing
   RoiOcTree tree(kRes);
   setFree(&tree, 0, 0, 0);
   setOccupied(&tree, 30, 60, 50);  // the cell [0.30, 0.31] x [0.60, 0.61] x [0.50, 0.51]
-  const Eigen::Vector3d target(0.305, 0.205, 0.505), facing(0, 1, 0);
-  ShapeTargets t = targetsAt({target}, {facing});
-  t.gains = {0.4};
-  t.view_cos_half_angle = std::cos(0.5);
-  t.view_max_range = 1.0;
-  t.view_clearance = 0.15;
-  UpstreamSamplingParams p;
-  p.expl_samples = 0;
-  std::mt19937 rng(5);
-  const SampledCandidates s = sampleUpstream(tree, everywhere(), t, target, p, rng);
+  const Eigen::Vector3d target(0.305, 0.205, 0.505);
+  const SampledCandidates s = sampleRoiOnly(tree, loneTargetWithGain(target, 0.15), target);
   ASSERT_EQ(s.roi.size(), 100u);
   const Eigen::Vector3d cell_min(0.30, 0.60, 0.50), cell_max(0.31, 0.61, 0.51);
   int crowded = 0, clear = 0;
