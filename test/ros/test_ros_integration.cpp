@@ -236,7 +236,21 @@ TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUns
   estimators.insertView(bad.cloud, bad.roi_indices, bad.transform);
   EXPECT_EQ(estimators.viewsSkipped(), 1u);
   EXPECT_EQ(estimators.host().fruits(0).size(), 1u);
+  // ... and a user sees both counts in /diagnostics, with the estimator's status.
+  std::string views_value, indices_value;
+  ros::Subscriber diag = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
+        for (const auto& st : a->status)
+          for (const auto& kv : st.values) {
+            if (kv.key.rfind("planner views skipped", 0) == 0 && kv.value != "0") views_value = kv.value;
+            if (kv.key.rfind("planner ROI indices skipped", 0) == 0 && kv.value != "0") indices_value = kv.value;
+          }
+      });
+  EXPECT_TRUE(waitFor([&] { return !views_value.empty() && !indices_value.empty(); }, 10.0));
+  EXPECT_EQ(views_value, "1");
+  EXPECT_EQ(indices_value, "2");
   estimators.reset();
+  EXPECT_EQ(estimators.viewsSkipped(), 0u);
   EXPECT_TRUE(estimators.host().fruits(0).empty());
   EXPECT_TRUE(estimators.extraTargets().empty());
 }

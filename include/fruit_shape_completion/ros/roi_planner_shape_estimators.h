@@ -95,13 +95,13 @@ class RoiPlannerShapeEstimators {
   void reset();
 
   host::ShapeEstimatorHost& host() { return loader_.host(); }
-  std::size_t viewsSkipped() const { return views_skipped_; }
-  std::size_t indicesSkipped() const { return indices_skipped_; }  // out of range or non-finite points
+  // Also in /diagnostics with each estimator's status; restart with reset().
+  std::size_t viewsSkipped() const { return loader_.plannerViewDrops().views; }
+  std::size_t indicesSkipped() const { return loader_.plannerViewDrops().indices; }  // out of range or non-finite points
 
  private:
   ShapeEstimatorLoader loader_;
   std::string map_frame_;
-  std::atomic<std::size_t> views_skipped_{0}, indices_skipped_{0};
   std::atomic<bool> closing_{false};
   std::mutex calls_mutex_;
   std::condition_variable calls_done_;

@@ -12,10 +12,19 @@
 #include <pluginlib/class_loader.hpp>
 #include <ros/timer.h>
 
+#include <atomic>
+#include <cstddef>
 #include <memory>
 
 namespace fruit_shape_completion {
 namespace ros_io {
+
+// What the planner handed over that never reached the estimators (RoiPlannerShapeEstimators
+// counts, the loader publishes them with each estimator's diagnostics).
+struct PlannerViewDrops {
+  std::atomic<std::size_t> views{0};    // malformed PointcloudWithRoi, or dropped (out of memory)
+  std::atomic<std::size_t> indices{0};  // ROI indices out of range or on non-finite points
+};
 
 class ShapeEstimatorLoader {
  public:
@@ -25,6 +34,8 @@ class ShapeEstimatorLoader {
   void load(ros::NodeHandle& planner_nh, const std::string& map_frame);
   host::ShapeEstimatorHost& host() { return host_; }
   const host::ShapeEstimatorHost& host() const { return host_; }
+  PlannerViewDrops& plannerViewDrops() { return planner_drops_; }
+  const PlannerViewDrops& plannerViewDrops() const { return planner_drops_; }
 
  private:
   // Order matters: members are destroyed in reverse, so the plugins (in host_) are destroyed
@@ -32,6 +43,7 @@ class ShapeEstimatorLoader {
   // wrong from outside.
   void diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status) const;
 
+  PlannerViewDrops planner_drops_;  // before the timer that reads them, so destroyed after it
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader_;
   host::ShapeEstimatorHost host_;
   std::vector<ShapeEstimatorPlugin*> plugins_;  // owned by host_, same order

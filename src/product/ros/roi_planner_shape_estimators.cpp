@@ -50,19 +50,19 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
     RoiView view;
     std::string error;
     if (!toRoiView(cloud, roi_indices, transform, map_frame_, &view, &error)) {
-      ++views_skipped_;
-      ROS_WARN("shape estimators: view skipped (%zu so far): %s", std::size_t(views_skipped_), error.c_str());
+      const std::size_t skipped = ++loader_.plannerViewDrops().views;
+      ROS_WARN("shape estimators: view skipped (%zu so far): %s", skipped, error.c_str());
       return;
     }
     if (view.bad_indices > 0) {
-      indices_skipped_ += view.bad_indices;
+      const std::size_t skipped = loader_.plannerViewDrops().indices += view.bad_indices;
       ROS_WARN_THROTTLE(10.0, "shape estimators: %zu ROI indices out of range or on NaN points skipped (%zu so far)",
-                        view.bad_indices, std::size_t(indices_skipped_));
+                        view.bad_indices, skipped);
     }
     loader_.host().onView({view.fruit, view.all, view.sensor_pose, time, host::ViewSource::kRoiCloud});
   } catch (const std::exception& e) {  // std::bad_alloc among them: drop this view, keep the planner running
-    ++views_skipped_;
-    ROS_ERROR("shape estimators: view dropped (%zu so far): %s", std::size_t(views_skipped_), e.what());
+    const std::size_t skipped = ++loader_.plannerViewDrops().views;
+    ROS_ERROR("shape estimators: view dropped (%zu so far): %s", skipped, e.what());
   }
 }
 
@@ -105,8 +105,8 @@ ShapeTargetRound RoiPlannerShapeEstimators::targetRound() const {
 
 void RoiPlannerShapeEstimators::reset() {
   loader_.host().reset();
-  views_skipped_ = 0;
-  indices_skipped_ = 0;
+  loader_.plannerViewDrops().views = 0;
+  loader_.plannerViewDrops().indices = 0;
 }
 
 }  // namespace ros_io

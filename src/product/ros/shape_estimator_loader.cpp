@@ -60,6 +60,8 @@ void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::Diagnosti
     for (const auto& kv : plugins_[i]->diagnostics()) status.add(kv.first, kv.second);
     const std::size_t oom = host_.outOfMemoryDrops(i);
     status.add("views dropped out of memory", oom);
+    status.add("planner views skipped (malformed PointcloudWithRoi, or dropped)", planner_drops_.views.load());
+    status.add("planner ROI indices skipped (out of range, non-finite points)", planner_drops_.indices.load());
     const host::ShapeEstimatorHost::UpdateStatus fit = host_.updateStatus(i);
     // The worker's runs, one per view the planner inserted (coalesced while one runs): a run with
     // nothing new to fit (a view without fruit) returns at once; the plugin's own updates (fruit
