@@ -236,15 +236,18 @@ TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUns
   estimators.insertView(bad.cloud, bad.roi_indices, bad.transform);
   EXPECT_EQ(estimators.viewsSkipped(), 1u);
   EXPECT_EQ(estimators.host().fruits(0).size(), 1u);
-  // ... and a user sees both counts in /diagnostics, with the estimator's status.
+  // ... and a user sees both counts in /diagnostics, in this process's input status.
   std::string views_value, indices_value;
+  const std::string status_name = ros::this_node::getName().substr(1) + ": shape estimators: PointcloudWithRoi input";
   ros::Subscriber diag = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
-        for (const auto& st : a->status)
+        for (const auto& st : a->status) {
+          if (st.name != status_name) continue;
           for (const auto& kv : st.values) {
-            if (kv.key.rfind("planner views skipped", 0) == 0 && kv.value != "0") views_value = kv.value;
-            if (kv.key.rfind("planner ROI indices skipped", 0) == 0 && kv.value != "0") indices_value = kv.value;
+            if (kv.key.rfind("views skipped", 0) == 0 && kv.value != "0") views_value = kv.value;
+            if (kv.key.rfind("ROI indices skipped", 0) == 0 && kv.value != "0") indices_value = kv.value;
           }
+        }
       });
   EXPECT_TRUE(waitFor([&] { return !views_value.empty() && !indices_value.empty(); }, 10.0));
   EXPECT_EQ(views_value, "1");

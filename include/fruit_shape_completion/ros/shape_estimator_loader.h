@@ -19,8 +19,8 @@
 namespace fruit_shape_completion {
 namespace ros_io {
 
-// What the planner handed over that never reached the estimators (RoiPlannerShapeEstimators
-// counts, the loader publishes them with each estimator's diagnostics).
+// PointcloudWithRoi input that never reached the estimators: RoiPlannerShapeEstimators counts,
+// the loader publishes (one status for all estimators) where load() is asked to.
 struct PlannerViewDrops {
   std::atomic<std::size_t> views{0};    // malformed PointcloudWithRoi, or dropped (out of memory)
   std::atomic<std::size_t> indices{0};  // ROI indices out of range or on non-finite points
@@ -31,7 +31,8 @@ class ShapeEstimatorLoader {
   ShapeEstimatorLoader();
   // Throws std::runtime_error with a clear message for a malformed list, an unknown plugin
   // type or a plugin that refuses its parameters.
-  void load(ros::NodeHandle& planner_nh, const std::string& map_frame);
+  // With report_view_drops, /diagnostics also carries plannerViewDrops() as its own status.
+  void load(ros::NodeHandle& planner_nh, const std::string& map_frame, bool report_view_drops = false);
   host::ShapeEstimatorHost& host() { return host_; }
   const host::ShapeEstimatorHost& host() const { return host_; }
   PlannerViewDrops& plannerViewDrops() { return planner_drops_; }

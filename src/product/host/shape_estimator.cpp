@@ -232,7 +232,7 @@ void appendChecked(const ShapeTargets& t, ShapeTargets* all) {
     all->view_cos_half_angle = t.view_cos_half_angle;
     all->view_max_range = t.view_max_range;
     // A bad value from another estimator turns the check off; a huge one would scan the map per view.
-    all->view_clearance = std::isfinite(t.view_clearance) && t.view_clearance > 0.0 ? std::min(t.view_clearance, 0.5) : 0.0;
+    all->view_clearance = t.view_clearance > 0.0 ? std::min(t.view_clearance, 0.5) : 0.0;  // NaN: off
   }
   for (std::size_t k = 0; k < t.points.size(); ++k) {
     if (!t.points[k].allFinite()) continue;

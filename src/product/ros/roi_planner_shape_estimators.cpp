@@ -11,7 +11,7 @@ namespace ros_io {
 
 RoiPlannerShapeEstimators::RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh, const std::string& map_frame)
     : map_frame_(map_frame) {
-  loader_.load(planner_nh, map_frame);
+  loader_.load(planner_nh, map_frame, /*report_view_drops=*/true);
 }
 
 bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
@@ -104,9 +104,9 @@ ShapeTargetRound RoiPlannerShapeEstimators::targetRound() const {
 }
 
 void RoiPlannerShapeEstimators::reset() {
-  loader_.host().reset();
   loader_.plannerViewDrops().views = 0;
   loader_.plannerViewDrops().indices = 0;
+  loader_.host().reset();
 }
 
 }  // namespace ros_io

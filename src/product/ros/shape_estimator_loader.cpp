@@ -13,7 +13,7 @@ ShapeEstimatorLoader::ShapeEstimatorLoader()
       host_([](const std::string& msg) { ROS_ERROR("%s", msg.c_str()); },
             host::ShapeEstimatorHost::Updates::kBackground) {}
 
-void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame) {
+void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_frame, bool report_view_drops) {
   XmlRpc::XmlRpcValue list;
   if (!nh.getParam("shape_estimators", list)) {
     ROS_INFO("no 'shape_estimators' parameter in %s: running without shape estimators", nh.getNamespace().c_str());
@@ -48,6 +48,14 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
   for (std::size_t i = 0; i < plugins_.size(); ++i)
     diagnostics_->add("shape estimator " + plugins_[i]->name(),
                       [this, i](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(i, s); });
+  if (report_view_drops)
+    diagnostics_->add("shape estimators: PointcloudWithRoi input", [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
+      const std::size_t views = planner_drops_.views, indices = planner_drops_.indices;
+      s.add("views skipped (malformed, or dropped)", views);
+      s.add("ROI indices skipped (out of range, non-finite points)", indices);
+      if (views + indices > 0) s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "input skipped (see the log)");
+      else s.summary(diagnostic_msgs::DiagnosticStatus::OK, "all input taken");
+    });
   diagnostics_timer_ = nh.createTimer(ros::Duration(1.0), [this](const ros::TimerEvent&) { diagnostics_->update(); });
 }
 
@@ -60,8 +68,6 @@ void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::Diagnosti
     for (const auto& kv : plugins_[i]->diagnostics()) status.add(kv.first, kv.second);
     const std::size_t oom = host_.outOfMemoryDrops(i);
     status.add("views dropped out of memory", oom);
-    status.add("planner views skipped (malformed PointcloudWithRoi, or dropped)", planner_drops_.views.load());
-    status.add("planner ROI indices skipped (out of range, non-finite points)", planner_drops_.indices.load());
     const host::ShapeEstimatorHost::UpdateStatus fit = host_.updateStatus(i);
     // The worker's runs, one per view the planner inserted (coalesced while one runs): a run with
     // nothing new to fit (a view without fruit) returns at once; the plugin's own updates (fruit
