@@ -95,7 +95,7 @@ class RoiPlannerShapeEstimators {
   void reset();
 
   host::ShapeEstimatorHost& host() { return loader_.host(); }
-  // Also in /diagnostics with each estimator's status; restart with reset().
+  // Also in /diagnostics ("shape estimators: PointcloudWithRoi input"); restart with reset().
   std::size_t viewsSkipped() const { return loader_.plannerViewDrops().views; }
   std::size_t indicesSkipped() const { return loader_.plannerViewDrops().indices; }  // out of range or non-finite points
 
