@@ -30,6 +30,8 @@ struct ShapeTargetParams {
   // gains nothing from predicted surface: the plant goes on beyond what the map has seen, and
   // moves to views in among it run into the unseen part. 0: no such check.
   double view_clearance = 0.15;
+  // Its upper bound: the check visits every map cell within it, once per sampled view.
+  static constexpr double kMaxViewClearance = 0.5;
   void validate() const;    // throws std::invalid_argument naming the first bad value
 };
 

@@ -19,7 +19,7 @@ void ShapeTargetParams::validate() const {
     throw std::invalid_argument("target_view_fov_deg must be in (0, 180), not " + std::to_string(view_fov_deg));
   if (!(std::isfinite(view_max_range) && view_max_range > 0.0))
     throw std::invalid_argument("target_view_max_range must be > 0 m, not " + std::to_string(view_max_range));
-  if (!(std::isfinite(view_clearance) && view_clearance >= 0.0 && view_clearance <= 0.5))
+  if (!(std::isfinite(view_clearance) && view_clearance >= 0.0 && view_clearance <= kMaxViewClearance))
     throw std::invalid_argument("target_view_clearance must be in [0, 0.5] m, not " + std::to_string(view_clearance));
 }
 

@@ -232,7 +232,7 @@ void appendChecked(const ShapeTargets& t, ShapeTargets* all) {
     all->view_cos_half_angle = t.view_cos_half_angle;
     all->view_max_range = t.view_max_range;
     // A bad value from another estimator turns the check off; a huge one would scan the map per view.
-    all->view_clearance = t.view_clearance > 0.0 ? std::min(t.view_clearance, 0.5) : 0.0;  // NaN: off
+    all->view_clearance = t.view_clearance > 0.0 ? std::min(t.view_clearance, ShapeTargetParams::kMaxViewClearance) : 0.0;  // NaN: off
   }
   for (std::size_t k = 0; k < t.points.size(); ++k) {
     if (!t.points[k].allFinite()) continue;
@@ -249,7 +249,7 @@ bool alreadyChecked(const ShapeTargets& t) {
   if (t.directions.size() != n) return false;
   const bool gained = t.view_max_range > 0.0;
   if (gained ? t.gains.size() != n : !t.gains.empty()) return false;
-  if (!(t.view_clearance >= 0.0 && t.view_clearance <= 0.5)) return false;
+  if (!(t.view_clearance >= 0.0 && t.view_clearance <= ShapeTargetParams::kMaxViewClearance)) return false;
   for (std::size_t k = 0; k < n; ++k)
     if (!t.points[k].allFinite() || !t.directions[k].allFinite() || (gained && !std::isfinite(t.gains[k]))) return false;
   return true;
