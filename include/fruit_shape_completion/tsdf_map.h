@@ -3,8 +3,9 @@
 // demand, so memory follows what was seen (the voxblox layout; defaults as the paper: 4 mm
 // voxels, 64 voxels per block side).
 //
-// Not synchronised: const methods may run concurrently, updates need exclusive access (the
-// superellipsoid estimator guards its map with a mutex).
+// Not synchronised: const methods may run concurrently, except markUpdates() (it writes the
+// update log that forEachBlockUpdatedSince reads); updates need exclusive access (the
+// superellipsoid estimator guards its map with one mutex for all of these).
 #include <fruit_shape_completion/grid_cell.h>
 #include <fruit_shape_completion/types.h>
 
@@ -30,6 +31,9 @@ struct TsdfMapParams {
   // a fruit); 16 (6.4 cm, 32 KiB) holds a mapped fruit in about 0.3 MiB instead of 3, with the
   // same voxels and the same fits (docs/benchmarks.md, "A greenhouse row").
   int voxels_per_side = 16;
+  // The largest block side a map may have: a saved map's file is read back only up to it (a block
+  // of 128^3 voxels reserves 16 MiB), so a map built with a larger side could not be loaded again.
+  static constexpr int kMaxVoxelsPerSide = 128;
   // Memory the map's blocks may reserve [MiB]; a block is 32 KiB at 16 voxels a side. At the
   // budget no block is created: the blocks held keep updating, the parts of views that need new
   // ones are dropped, counted and reported (IntegrationReport::over_budget).
@@ -110,6 +114,9 @@ class TsdfMap {
   // The block with that origin, created if needed; nullptr if the memory budget, the key range or the
   // crop box (the block lies wholly outside it) forbid it.
   TsdfBlock* blockForUpdate(const VoxelIndex& block_origin);
+  // Whether the key range and the crop box allow a block at that origin (what blockForUpdate
+  // checks besides the budget): a missing block that may be there was refused by the budget.
+  bool blockAllowed(const VoxelIndex& block_origin) const;
   // Sets a voxel (used by load); false if its block cannot be created.
   bool setVoxel(const VoxelIndex& v, const TsdfVoxel& value);
 

@@ -109,6 +109,23 @@ TEST(HsiRedTest, AgreesWithPclsPackedHsiComparisonAsPointcloudRoiSetsItUp) {
   }
   EXPECT_GT(red, 10000u);  // the sample does cover the band
   EXPECT_EQ(disagree, 0u);
+
+  // With no saturation floor grey pixels reach the hue test, whose hue PCL takes as 0: inside.
+  pcl::ConditionAnd<pcl::PointXYZRGB>::Ptr any_saturation(new pcl::ConditionAnd<pcl::PointXYZRGB>);
+  any_saturation->addComparison(Hsi::ConstPtr(new Hsi("h", pcl::ComparisonOps::GE, -20)));
+  any_saturation->addComparison(Hsi::ConstPtr(new Hsi("h", pcl::ComparisonOps::LE, 35)));
+  any_saturation->addComparison(Hsi::ConstPtr(new Hsi("i", pcl::ComparisonOps::GE, 30)));
+  HsiRedTest no_floor;
+  no_floor.min_saturation = 0;
+  std::size_t grey_red = 0;
+  disagree = 0;
+  for (const auto& p : *cloud) {
+    const bool theirs = any_saturation->evaluate(p);
+    grey_red += theirs && p.r == p.g && p.g == p.b;
+    disagree += theirs != no_floor.isRed(p.r, p.g, p.b);
+  }
+  EXPECT_GT(grey_red, 10u);
+  EXPECT_EQ(disagree, 0u);
 }
 
 // The tabulated hue band is the computed one, colour for colour: all 2^24 colours, for the

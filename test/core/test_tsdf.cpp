@@ -554,6 +554,42 @@ TEST(TsdfMap, AtItsMemoryBudgetNewBlocksAreRefusedCountedAndReported) {
   TsdfMapParams none = params;
   none.memory_budget_mb = 1.0;  // less than a 2 MiB block
   EXPECT_THROW(TsdfMap{none}, std::invalid_argument);
+
+  // A full map with a crop box: what lies outside the box is counted as outside the map, not as
+  // over the budget (raising the budget would not bring it in).
+  TsdfMapParams cropped = params;
+  cropped.use_crop_box = true;
+  cropped.crop_min = Eigen::Vector3d(-1, -1, -1);
+  cropped.crop_max = Eigen::Vector3d(1, 1, 1);
+  TsdfMap boxed(cropped);
+  boxed.blockForUpdate(VoxelIndex(0, 0, 0));
+  boxed.blockForUpdate(VoxelIndex(64, 0, 0));
+  ASSERT_TRUE(boxed.atBudget());
+  r = integ.integrate(boxed, renderDepth(far, far_cam, 0.0, 2).points, far_cam.position);
+  EXPECT_EQ(r.over_budget, 0u);
+  EXPECT_GT(r.outside_map, 100u);
+  EXPECT_EQ(r.warning.find("memory budget"), std::string::npos) << r.warning;
+}
+
+// Every block side a map accepts is one its saved file can be loaded with; one beyond is refused
+// when the map is made, not when its file is read back.
+TEST(TsdfMap, EveryAcceptedBlockSideLoadsBack) {
+  const std::string path = "/tmp/fsc_block_side_" + std::to_string(::getpid()) + ".tsdf";
+  std::string err;
+  for (const int side : {1, 48, TsdfMapParams::kMaxVoxelsPerSide}) {
+    TsdfMapParams p;
+    p.voxels_per_side = side;
+    TsdfMap map(p);
+    ASSERT_TRUE(map.setVoxel(VoxelIndex(3, -2, side + 1), {0.001f, 1.0f}));
+    ASSERT_TRUE(map.save(path, &err)) << err;
+    TsdfMap loaded(p);
+    EXPECT_TRUE(loaded.load(path, &err)) << "side " << side << ": " << err;
+    EXPECT_EQ(loaded.observedVoxelCount(), 1u) << "side " << side;
+  }
+  TsdfMapParams beyond;
+  beyond.voxels_per_side = TsdfMapParams::kMaxVoxelsPerSide + 1;
+  EXPECT_THROW(TsdfMap{beyond}, std::invalid_argument);
+  std::remove(path.c_str());
 }
 
 // save() replaces the file atomically: a process killed (SIGKILL) at any moment of a large save

@@ -709,6 +709,34 @@ TEST(ShapeEstimatorHost, SharedResultsAreHandedOutWithoutCopiesAndNeverChangeAft
   EXPECT_TRUE(host.sharedViewTargets()->points.empty());
 }
 
+// New target settings with no new view: the next update selects the last fits' targets again
+// under them, without waiting for the map to change (and without fitting again).
+TEST(ShapeEstimatorHost, LiveTargetSettingsApplyWithoutANewView) {
+  ShapeEstimatorHost host;
+  host.add(std::make_unique<SuperellipsoidEstimator>());
+  auto& est = dynamic_cast<SuperellipsoidEstimator&>(host.estimator(0));
+  mapPartialViews(est);
+  const auto fruits = host.sharedFruits(0);
+  ASSERT_EQ(fruits->size(), 1u);
+  ASSERT_GT(host.sharedViewTargets()->points.size(), 5u);
+  EstimatorLiveParams live = est.liveParams();
+  live.targets.per_fruit = 5;
+  est.setLiveParams(live);
+  est.update();
+  EXPECT_EQ(host.sharedViewTargets()->points.size(), 5u);
+  EXPECT_EQ(host.sharedFruits(0), fruits) << "the fits are those of the unchanged map";
+  // Off, then on again: the targets of the settings in force.
+  live.shape_targets = false;
+  est.setLiveParams(live);
+  est.update();
+  EXPECT_TRUE(host.sharedViewTargets()->points.empty());
+  live.shape_targets = true;
+  live.targets.per_fruit = 0;
+  est.setLiveParams(live);
+  est.update();
+  EXPECT_GT(host.sharedViewTargets()->points.size(), 5u);
+}
+
 TEST(ShapeEstimatorHost, TargetsWithNonFiniteValuesAreFixedOnceNotPassedOn) {
   // Another estimator's targets: a NaN point (dropped) and a NaN direction (made "any side").
   class DirtyTargets : public ShapeEstimator {

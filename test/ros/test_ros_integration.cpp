@@ -26,6 +26,7 @@
 #include <pcl_conversions/pcl_conversions.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/static_transform_broadcaster.h>
+#include <tf2_ros/transform_broadcaster.h>
 #include <topic_tools/shape_shifter.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -341,6 +342,81 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
   EXPECT_FALSE(load.response.success);
   EXPECT_NE(load.response.message.find("/nonexistent/map.tsdf"), std::string::npos) << load.response.message;
   std::remove(file.c_str());
+}
+
+// As the planner: a cloud outside the map frame is taken there by tf at its stamp, whatever
+// transform its message carries; one whose frame tf does not know is skipped and counted.
+TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
+  ros::NodeHandle nh;
+  ros::Publisher pub = nh.advertise<pointcloud_roi_msgs::PointcloudWithRoi>(ros_io::kUpstreamRoiTopic, 10);
+  topic_tools::ShapeShifter::ConstPtr last;
+  ros::Subscriber sub = nh.subscribe<topic_tools::ShapeShifter>(
+      ros_io::kUpstreamSuperellipsoidsTopic, 5, [&](const topic_tools::ShapeShifter::ConstPtr& m) { last = m; });
+  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0 && sub.getNumPublishers() > 0; }, 30.0));
+  std_srvs::Empty clear;
+  ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
+  tf2_ros::TransformBroadcaster tf;
+  const FruitOnALeaf s;
+  const std::string frame = "fsc_test_camera_" + std::to_string(::getpid());
+  // A second of the frame's transform first: the node's tf listener connects to this publisher.
+  for (int i = 0; i < 10; ++i) {
+    geometry_msgs::TransformStamped warm;
+    warm.header.stamp = ros::Time::now();
+    warm.header.frame_id = "world";
+    warm.child_frame_id = frame;
+    warm.transform.rotation.w = 1.0;
+    tf.sendTransform(warm);
+    ros::WallDuration(0.1).sleep();
+  }
+  for (const auto& camera : s.cameras) {
+    pointcloud_roi_msgs::PointcloudWithRoi msg = roiCloud(s.scene, 1, camera, /*in_camera_frame=*/true);
+    geometry_msgs::TransformStamped pose;
+    pose.transform = msg.transform;
+    pose.header.stamp = ros::Time::now();
+    pose.header.frame_id = "world";
+    pose.child_frame_id = frame;
+    tf.sendTransform(pose);
+    msg.cloud.header.frame_id = frame;
+    msg.cloud.header.stamp = pose.header.stamp;
+    msg.transform = geometry_msgs::Transform();  // not the sensor pose: tf is what counts
+    msg.transform.rotation.w = 1.0;
+    ros::WallDuration(0.05).sleep();
+    pub.publish(msg);
+    ros::WallDuration(0.2).sleep();
+  }
+  superellipsoid_msgs::SuperellipsoidArray arr;
+  ASSERT_TRUE(waitFor([&] {
+    if (!last) return false;
+    arr = asSuperellipsoidArray(*last);
+    return arr.superellipsoids.size() == 1;
+  }, 60.0)) << "no fruit from clouds in the camera frame";
+  const auto& m = arr.superellipsoids[0];
+  EXPECT_LT((Eigen::Vector3d(m.tx, m.ty, m.tz) - s.truth.t).norm(), 0.01);
+  EXPECT_NEAR(m.volume, s.truth.volume(), 0.25 * s.truth.volume());
+
+  // A frame tf has never heard of: skipped, counted in /diagnostics, the fruit kept.
+  std::string views_value;
+  ros::Subscriber diag = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
+        for (const auto& st : a->status) {
+          if (st.name != "fruit_mapping_node: shape estimators: PointcloudWithRoi input") continue;
+          for (const auto& kv : st.values)
+            if (kv.key.rfind("views skipped", 0) == 0) views_value = kv.value;
+        }
+      });
+  ASSERT_TRUE(waitFor([&] { return !views_value.empty(); }, 10.0));
+  const std::string before = views_value;
+  pointcloud_roi_msgs::PointcloudWithRoi lost = roiCloud(s.scene, 1, s.cameras[0], /*in_camera_frame=*/true);
+  lost.cloud.header.frame_id = "fsc_no_such_frame";
+  lost.cloud.header.stamp = ros::Time::now();
+  pub.publish(lost);
+  const std::string after = std::to_string(std::stoul(before) + 1);
+  EXPECT_TRUE(waitFor([&] { return views_value == after; }, 10.0)) << "views skipped: " << before << " -> " << views_value;
+  ros::WallDuration(0.5).sleep();
+  arr = asSuperellipsoidArray(*last);
+  ASSERT_EQ(arr.superellipsoids.size(), 1u);
+  EXPECT_LT((Eigen::Vector3d(arr.superellipsoids[0].tx, arr.superellipsoids[0].ty, arr.superellipsoids[0].tz) - s.truth.t).norm(), 0.01);
+  ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
 }
 
 TEST(Plugin, LoadsByNameThroughPluginlib) {

@@ -3,8 +3,11 @@
 must give the checked-in results.json: the same scene, views and fruit counts, and accuracies and
 centre errors within small tolerances (other compilers round differently). Guards refactoring:
 moving files or swapping libraries must not change what the instrument measures.
+Without shape targets: with them the views follow the fits, and fits that differ in their last
+digits from one machine to another (seen between two VMs of the same kind) sent an episode to
+other views, which no tolerance on the figures can absorb.
 Regenerate after a deliberate change of behaviour:
-  run_trials --scene procedural:3 --profile ideal --trials 2 --duration 30 --jobs 2 --out DIR
+  run_trials --scene procedural:3 --profile ideal --trials 2 --duration 30 --jobs 2 --no-shape-targets --out DIR
 and copy DIR/results.json without wall_s_per_trial into test/data/."""
 import json
 import subprocess
@@ -14,7 +17,7 @@ import tempfile
 exe, expected_path = sys.argv[1], sys.argv[2]
 with tempfile.TemporaryDirectory() as out:
     subprocess.run([exe, "--scene", "procedural:3", "--profile", "ideal", "--trials", "2", "--duration", "30",
-                    "--jobs", "2", "--out", out], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                    "--jobs", "2", "--no-shape-targets", "--out", out], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     got = json.load(open(out + "/results.json"))
 expected = json.load(open(expected_path))
 problems = []

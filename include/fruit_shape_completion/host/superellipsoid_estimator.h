@@ -144,6 +144,9 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   // Makes a running update return early and store nothing (reset, load), and holds fit_mutex_
   // until the caller has replaced what the update would have read.
   std::unique_lock<std::mutex> cancelRunningFit();
+  // New target settings on an unchanged map: the last fits' targets are selected again (under
+  // fit_mutex_), so that a change reaches the planner without waiting for a view.
+  void selectTargetsAgain();
   // Swapped whole by setLiveParams; a view runs the stage it took, outside the locks.
   std::shared_ptr<const FruitInputStage> input_stage_;
   // Guards input_stage_, live_ and live_pending_; held briefly, never while taking another lock.

@@ -70,9 +70,9 @@ class RoiPlannerShapeEstimators {
   // planner_nh/<name>. Without the parameter there are none and every call does nothing.
   // Throws std::runtime_error naming a bad entry or parameter.
   RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh, const std::string& map_frame);
-  // Waits (at most 1 s) for insertView calls still running: upstream's planner deletes itself
-  // while its spinner may still be in a view callback, and a call here can wait for a camera
-  // frame or a transform.
+  // Waits for insertView calls still running (warning every few seconds while one does):
+  // upstream's planner deletes itself while its spinner may still be in a view callback, and a
+  // call here can wait for the map a fit is being integrated into; the estimators must outlive it.
   ~RoiPlannerShapeEstimators();
   bool empty() const { return loader_.host().size() == 0; }
 
@@ -81,6 +81,9 @@ class RoiPlannerShapeEstimators {
   // fit. Never throws: a malformed cloud or bad indices are logged, counted and skipped.
   void insertView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
                   const geometry_msgs::Transform& transform, double time = 0.0);
+  // A view its host could not hand over (no transform to the map frame, say): counted and
+  // warned as the views insertView skips.
+  void skipView(const std::string& why);
   // The estimators' predicted, unseen fruit surface in the map frame, from their latest
   // finished fits. Does not wait for a fit.
   std::vector<octomap::point3d> extraTargets() const;

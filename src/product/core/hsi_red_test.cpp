@@ -17,8 +17,9 @@ bool HsiRedTest::brightAndSaturated(std::uint8_t r, std::uint8_t g, std::uint8_t
 bool HsiRedTest::hueInBand(int twice_r_minus_g_b, int g_minus_b) const {
   const float hx = static_cast<float>(twice_r_minus_g_b) / 4.0f;
   const float hy = static_cast<float>(g_minus_b) * 111.0f / 255.0f;
-  // hx <= 0 puts the hue at a quarter turn or beyond, outside any band narrower than that.
-  if (!(hx > 0.0f) && min_hue > -64 && max_hue < 64) return false;
+  // hx <= 0 puts the hue at a quarter turn or beyond, outside any band narrower than that; but
+  // a grey pixel (hx = hy = 0) has atan2's hue 0, as in PCL.
+  if (!(hx > 0.0f) && !(hx == 0.0f && hy == 0.0f) && min_hue > -64 && max_hue < 64) return false;
   const double h = std::atan2(hy, hx) * 128.0f / M_PI;
   const int hue = h >= 128.0 ? -128 : static_cast<int>(h);  // PCL's int8 cast wraps +128 to -128
   return hue >= min_hue && hue <= max_hue;

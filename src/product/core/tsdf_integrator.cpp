@@ -189,9 +189,14 @@ class BandCaster {
     if (params_.drop_off && sdf < -vs_) return ray_weight * (tau_ + sdf) * inv_drop_len_;
     return ray_weight;
   }
-  // Queues the update of voxel (x, y, z) of `block` (block-local); 0, or why it is dropped.
-  unsigned queue(TsdfBlock* block, int x, int y, int z, double sdf, double weight) {
-    if (block == nullptr) return map_.atBudget() ? kOverBudget : kOutside;
+  // Why the map gave no block at `block_origin`: the budget, or the key range or crop box.
+  unsigned missing(const VoxelIndex& block_origin) const {
+    return map_.blockAllowed(block_origin) ? kOverBudget : kOutside;
+  }
+  // Queues the update of voxel (x, y, z) of `block` (block-local); 0, or why it is dropped
+  // (`miss`, when there is no block).
+  unsigned queue(TsdfBlock* block, unsigned miss, int x, int y, int z, double sdf, double weight) {
+    if (block == nullptr) return miss;
     if (map_.params().use_crop_box && !map_.insideCropBox(map_.voxelCenter(block->origin + VoxelIndex(x, y, z))))
       return kOutside;
     const std::uint32_t idx = block->indexOf(x, y, z);
@@ -233,6 +238,7 @@ unsigned BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origi
   setup(2, sz, tz, dtz);
   VoxelIndex block_origin = map_.blockOriginOf(first);
   TsdfBlock* block = map_.blockForUpdate(block_origin);
+  unsigned miss = block == nullptr ? missing(block_origin) : 0;
   int x = static_cast<int>(first.x() - block_origin.x());
   int y = static_cast<int>(first.y() - block_origin.y());
   int z = static_cast<int>(first.z() - block_origin.z());
@@ -242,7 +248,7 @@ unsigned BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origi
   unsigned dropped = 0;
   for (std::int64_t n = 0;; ++n) {
     const double w = sdf >= -back_len ? weightAt(sdf, weight) : 0.0;
-    if (w > 0.0) dropped |= queue(block, x, y, z, sdf, w);
+    if (w > 0.0) dropped |= queue(block, miss, x, y, z, sdf, w);
     if (n == steps) break;
     int* moved;  // the axis whose boundary comes first (ties: x, then y, then z)
     if (tx <= ty && tx <= tz) {
@@ -259,6 +265,7 @@ unsigned BandCaster::cast(const Eigen::Vector3d& p, const Eigen::Vector3d& origi
       const VoxelIndex voxel = block_origin + VoxelIndex(x, y, z);
       block_origin = map_.blockOriginOf(voxel);
       block = map_.blockForUpdate(block_origin);
+      miss = block == nullptr ? missing(block_origin) : 0;
       x = static_cast<int>(voxel.x() - block_origin.x());
       y = static_cast<int>(voxel.y() - block_origin.y());
       z = static_cast<int>(voxel.z() - block_origin.z());

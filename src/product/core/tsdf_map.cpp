@@ -27,8 +27,8 @@ void TsdfMapParams::validate() const {
   // 268 km at 4 mm voxels and 64 per block: blockInRange).
   if (!(voxel_size >= 1e-4 && voxel_size <= 10.0))
     throw std::invalid_argument("tsdf voxel_size must be in [0.0001, 10] m");
-  if (voxels_per_side < 1 || voxels_per_side > 512)
-    throw std::invalid_argument("tsdf voxels_per_side must be in 1..512");
+  if (voxels_per_side < 1 || voxels_per_side > kMaxVoxelsPerSide)
+    throw std::invalid_argument("tsdf voxels_per_side must be in 1.." + std::to_string(kMaxVoxelsPerSide));
   if (!(memory_budget_mb > 0.0) || !std::isfinite(memory_budget_mb) || maxBlocks() < 1) {
     std::ostringstream os;
     os << "tsdf memory_budget_mb (" << memory_budget_mb << ") must hold at least one block of "
@@ -100,6 +100,15 @@ const TsdfVoxel* TsdfMap::voxel(const VoxelIndex& v) const {
   return &it->second->voxels[it->second->indexOf(static_cast<int>(l.x()), static_cast<int>(l.y()), static_cast<int>(l.z()))];
 }
 
+bool TsdfMap::blockAllowed(const VoxelIndex& origin) const {
+  if (!blockInRange(origin)) return false;
+  if (!params_.use_crop_box) return true;
+  const double vs = params_.voxel_size;
+  const Eigen::Vector3d lo = origin.cast<double>() * vs;
+  const Eigen::Vector3d hi = lo + Eigen::Vector3d::Constant(params_.voxels_per_side * vs);
+  return !((hi.array() < params_.crop_min.array()).any() || (lo.array() > params_.crop_max.array()).any());
+}
+
 bool TsdfMap::blockInRange(const VoxelIndex& origin) const {
   // Block keys hold 21 bits per axis: beyond +-2^20 blocks two places would share a block.
   const std::int64_t limit = static_cast<std::int64_t>(params_.voxels_per_side) * ((std::int64_t(1) << 20) - 1);
@@ -117,14 +126,7 @@ TsdfBlock* TsdfMap::blockForUpdate(const VoxelIndex& origin) {
   const std::uint64_t key = blockKeyOf(origin);
   auto it = blocks_.find(key);
   if (it == blocks_.end()) {
-    if (atBudget()) return nullptr;
-    if (params_.use_crop_box) {
-      const double vs = params_.voxel_size;
-      const Eigen::Vector3d lo = origin.cast<double>() * vs;
-      const Eigen::Vector3d hi = lo + Eigen::Vector3d::Constant(params_.voxels_per_side * vs);
-      if ((hi.array() < params_.crop_min.array()).any() || (lo.array() > params_.crop_max.array()).any())
-        return nullptr;
-    }
+    if (!blockAllowed(origin) || atBudget()) return nullptr;
     it = blocks_.emplace(key, std::make_unique<TsdfBlock>(origin, params_.voxels_per_side)).first;
   }
   cached_origin_ = origin;
@@ -229,8 +231,10 @@ bool TsdfMap::load(const std::string& path, std::string* error, std::string* res
   if (!get(&version, 4) || version != 1) return fail("unsupported TSDF map file version");
   if (!get(&voxel_size, 8) || !get(&vps, 4) || !get(&count, 8)) return fail("truncated header");
   // A file's block costs vps^3 voxels of memory for as little as 12 bytes of file: a block side
-  // beyond 128 (16 MiB a block) is no map this package writes.
-  if (vps > 128) return fail("bad header: voxels_per_side " + std::to_string(vps) + " exceeds 128");
+  // beyond the largest a map may have is no map this package writes.
+  if (vps > static_cast<std::uint32_t>(TsdfMapParams::kMaxVoxelsPerSide))
+    return fail("bad header: voxels_per_side " + std::to_string(vps) + " exceeds " +
+                std::to_string(TsdfMapParams::kMaxVoxelsPerSide));
   TsdfMapParams p = params_;
   p.voxel_size = voxel_size;
   p.voxels_per_side = static_cast<int>(vps);

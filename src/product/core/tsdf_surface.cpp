@@ -1,9 +1,11 @@
 #include <fruit_shape_completion/tsdf_surface.h>
 
+#include <fruit_shape_completion/atomic_file.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <fstream>
+#include <sstream>
 
 namespace fruit_shape_completion {
 
@@ -233,21 +235,15 @@ TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
 }
 
 bool TriangleMesh::writePly(const std::string& path, std::string* error) const {
-  std::ofstream out(path);
-  if (!out) {
-    if (error) *error = path + ": cannot open for writing";
-    return false;
-  }
+  // Written whole and renamed into place: a kill or a full disk leaves the previous file.
+  std::ostringstream out;
   out << "ply\nformat ascii 1.0\nelement vertex " << vertices.size()
       << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << triangles.size()
       << "\nproperty list uchar int vertex_indices\nend_header\n";
   for (const auto& v : vertices) out << v.x() << ' ' << v.y() << ' ' << v.z() << '\n';
   for (const auto& t : triangles) out << "3 " << t.x() << ' ' << t.y() << ' ' << t.z() << '\n';
-  if (!out) {
-    if (error) *error = path + ": write error";
-    return false;
-  }
-  return true;
+  std::string ignored;
+  return writeFileAtomically(path, out.str(), error != nullptr ? error : &ignored);
 }
 
 }  // namespace fruit_shape_completion

@@ -210,6 +210,7 @@ std::size_t SuperellipsoidEstimator::pendingViews() const {
 
 void SuperellipsoidEstimator::update() {
   std::lock_guard<std::mutex> fit_lock(fit_mutex_);
+  bool retarget = false;  // new target settings: the last fits' targets are selected again
   {
     std::lock_guard<std::mutex> lock(live_mutex_);
     if (live_pending_) {
@@ -218,18 +219,26 @@ void SuperellipsoidEstimator::update() {
       params_.shape_targets = live_.shape_targets;
       params_.targets = live_.targets;
       live_pending_ = false;
+      retarget = true;
     }
   }
   SurfaceBlocks surface;  // its blocks' points shared with the extractor, not copied
   double surface_seconds = 0.0;
+  bool map_changed = false;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
     integratePending();
-    if (!dirty_) return;
-    const auto start = std::chrono::steady_clock::now();
-    surface = surface_extractor_.extractBlocks(map_);
-    surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    dirty_ = false;
+    if (dirty_) {
+      const auto start = std::chrono::steady_clock::now();
+      surface = surface_extractor_.extractBlocks(map_);
+      surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      dirty_ = false;
+      map_changed = true;
+    }
+  }
+  if (!map_changed) {
+    if (retarget) selectTargetsAgain();  // outside the map's lock: views keep coming in
+    return;
   }
   // The fit runs on the surface snapshot, with the map free for new views and the last results
   // free for queries.
@@ -252,6 +261,18 @@ void SuperellipsoidEstimator::update() {
   targets_ = std::make_shared<const ShapeTargets>(std::move(targets));
   stats_ = pipeline_.lastStats();
   surface_seconds_ = surface_seconds;
+}
+
+void SuperellipsoidEstimator::selectTargetsAgain() {
+  std::shared_ptr<const std::vector<FruitEstimate>> fruits;
+  {
+    std::lock_guard<std::mutex> lock(results_mutex_);
+    fruits = accepted_;
+  }
+  ShapeTargets targets;
+  if (params_.shape_targets) targets = selectShapeTargets(*fruits, pipeline_.params().missing.samples, params_.targets);
+  std::lock_guard<std::mutex> lock(results_mutex_);
+  if (accepted_ == fruits) targets_ = std::make_shared<const ShapeTargets>(std::move(targets));
 }
 
 std::vector<FruitEstimate> SuperellipsoidEstimator::fruits() const { return *sharedFruits(); }

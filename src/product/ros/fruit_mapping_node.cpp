@@ -3,12 +3,15 @@
 // through pointcloud_roi or from a bag). Hosts the estimators listed in ~shape_estimators exactly
 // as the patched roi_viewpoint_planner does (ros_io::RoiPlannerShapeEstimators), so each
 // publishes in ~<name>/ and offers clear_map, save_map and load_map there; ~clear_map clears
-// them all (upstream calls /voxblox_node/clear_map on reset: remap it here).
+// them all (upstream calls /voxblox_node/clear_map on reset: remap it here). As the planner: a
+// cloud in the map frame comes with its sensor pose in the message; any other cloud is taken to
+// the map frame by tf at its stamp (the message's transform then unused), or skipped and counted.
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 #include <fruit_shape_completion/ros/upstream_messages.h>
 
 #include <ros/ros.h>
 #include <std_srvs/Empty.h>
+#include <tf2_ros/transform_listener.h>
 
 using namespace fruit_shape_completion;
 
@@ -26,9 +29,27 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (estimators->empty()) ROS_WARN("no shape estimators configured in %s/shape_estimators", pnh.getNamespace().c_str());
+  double tf_wait = 0.2;  // [s] how long a cloud outside the map frame waits for its transform
+  pnh.param("tf_wait", tf_wait, tf_wait);
+  if (!(tf_wait >= 0.0 && tf_wait <= 10.0)) {
+    ROS_FATAL("~tf_wait must be in [0, 10] s, not %g", tf_wait);
+    return 1;
+  }
+  tf2_ros::Buffer tf_buffer;
+  tf2_ros::TransformListener tf_listener(tf_buffer);
   ros::Subscriber sub = pnh.subscribe<pointcloud_roi_msgs::PointcloudWithRoi>(
       roi_topic, 2, [&](const pointcloud_roi_msgs::PointcloudWithRoiConstPtr& msg) {
-        estimators->insertView(msg->cloud, msg->roi_indices, msg->transform, msg->cloud.header.stamp.toSec());
+        const auto& header = msg->cloud.header;
+        geometry_msgs::Transform transform = msg->transform;
+        if (header.frame_id != map_frame) {
+          try {
+            transform = tf_buffer.lookupTransform(map_frame, header.frame_id, header.stamp, ros::Duration(tf_wait)).transform;
+          } catch (const tf2::TransformException& e) {
+            estimators->skipView("no transform from " + header.frame_id + " to " + map_frame + ": " + e.what());
+            return;
+          }
+        }
+        estimators->insertView(msg->cloud, msg->roi_indices, transform, header.stamp.toSec());
       });
   ros::ServiceServer clear = pnh.advertiseService<std_srvs::Empty::Request, std_srvs::Empty::Response>(
       "clear_map", [&](std_srvs::Empty::Request&, std_srvs::Empty::Response&) {

@@ -66,11 +66,18 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
   }
 }
 
+void RoiPlannerShapeEstimators::skipView(const std::string& why) {
+  const std::size_t skipped = ++loader_.plannerViewDrops().views;
+  ROS_WARN_THROTTLE(10.0, "shape estimators: view skipped (%zu so far): %s", skipped, why.c_str());
+}
+
 RoiPlannerShapeEstimators::~RoiPlannerShapeEstimators() {
   std::unique_lock<std::mutex> lock(calls_mutex_);
   closing_ = true;
-  if (!calls_done_.wait_for(lock, std::chrono::seconds(1), [this] { return calls_ == 0; }))
-    ROS_WARN("shape estimators: unloaded while %d view call(s) still ran", calls_);
+  // A running call uses the estimators destroyed after this: it is waited for however long it
+  // takes (a view's integration is bounded work), never abandoned.
+  while (!calls_done_.wait_for(lock, std::chrono::seconds(2), [this] { return calls_ == 0; }))
+    ROS_WARN("shape estimators: unloading, waiting for %d view call(s) still running", calls_);
 }
 
 std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets() const {
