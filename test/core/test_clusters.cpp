@@ -68,6 +68,8 @@ TEST(StatisticalOutlierFilter, FlagsStraysAsTheDefinitionSays) {
   EXPECT_LT(sphere_flags, on_sphere / 50);
   params.k = 0;
   EXPECT_THROW(params.validate(), std::invalid_argument);
+  params.k = 1001;  // k distances kept per point: bounded
+  EXPECT_THROW(params.validate(), std::invalid_argument);
 }
 
 
@@ -140,6 +142,14 @@ TEST(EuclideanClustering, DuplicatePilesAreClusteredAsTheirPositions) {
   clusters = euclideanClusters(pts, params);
   ASSERT_EQ(clusters.size(), 1u);
   EXPECT_EQ(clusters[0].size(), pts.size());
+  // Two piles whose cells' packed keys coincide (2^21 cells of tolerance / 8 apart, 2.62144 km
+  // at 1 cm) are two clusters, not one.
+  PointList far(3, Eigen::Vector3d(0.0005, 0.0005, 0.0005));
+  far.insert(far.end(), 3, Eigen::Vector3d(0.0005 + 2621.44, 0.0005, 0.0005));
+  clusters = euclideanClusters(far, params);
+  ASSERT_EQ(clusters.size(), 2u);
+  EXPECT_EQ(clusters[0].size(), 3u);
+  EXPECT_EQ(clusters[1].size(), 3u);
 }
 
 TEST(SurfaceNormals, SphereNormalsPointToTheCentre) {

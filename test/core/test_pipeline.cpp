@@ -254,6 +254,9 @@ TEST(FruitShapePipeline, InvalidParametersAreRefused) {
   p = PipelineParams();
   p.threads = 0;
   EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
+  p = PipelineParams();
+  p.missing.samples = 100001;  // every fruit keeps its samples
+  EXPECT_THROW(FruitShapePipeline{p}, std::invalid_argument);
 }
 
 TEST(FruitShapePipeline, ASplitKeepsTheFruitsThatFitBesideAPartThatFitsNothing) {

@@ -416,6 +416,9 @@ TEST(TsdfMap, BadInputIsRefusedWithAMessageAndTheMapKept) {
   TsdfIntegratorParams tiny;
   tiny.max_weight = 1e-30;
   EXPECT_THROW(TsdfIntegrator{tiny}, std::invalid_argument);
+  TsdfIntegratorParams far_range;
+  far_range.max_range = 1e6;  // carving would step through every voxel of such a ray
+  EXPECT_THROW(TsdfIntegrator{far_range}, std::invalid_argument);
 }
 
 // One const integrator used by two threads at once (each into its own map): both maps equal

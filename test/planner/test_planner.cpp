@@ -290,6 +290,47 @@ TEST(ShapeEstimatorHost, AThrowingEstimatorIsDisabledNotFatal) {
   EXPECT_FALSE(host.extraTargets().empty());  // the unseen back half
 }
 
+// An estimator that fails after every reset of a long evaluation: the host keeps the most recent
+// messages, not all of them, and reports every one.
+TEST(ShapeEstimatorHost, FailuresAfterEveryResetKeepABoundedList) {
+  std::size_t reported = 0;
+  ShapeEstimatorHost host([&](const std::string&) { ++reported; });
+  host.add(std::make_unique<ThrowingEstimator>());
+  const PointList none;
+  const std::size_t rounds = ShapeEstimatorHost::kKeptErrors + 50;
+  for (std::size_t k = 0; k < rounds; ++k) {
+    host.reset();
+    EXPECT_TRUE(host.enabled(0));
+    host.onView(ViewData{none, none, Eigen::Isometry3d::Identity(), static_cast<double>(k)});
+    EXPECT_FALSE(host.enabled(0));
+  }
+  EXPECT_EQ(reported, rounds);
+  EXPECT_EQ(host.errors().size(), ShapeEstimatorHost::kKeptErrors);
+  EXPECT_NE(host.errors().back().find("broken on purpose"), std::string::npos);
+}
+
+// An estimator hears when the host disables it and when a reset enables it again (one that maps
+// on its own inputs stops and resumes there too).
+TEST(ShapeEstimatorHost, AnEstimatorHearsItWasDisabledAndEnabledAgain) {
+  class Listening : public ThrowingEstimator {
+   public:
+    void enabledChanged(bool enabled) noexcept override { heard.push_back(enabled); }
+    std::vector<bool> heard;
+  };
+  ShapeEstimatorHost host([](const std::string&) {});
+  host.add(std::make_unique<Listening>());
+  auto& est = dynamic_cast<Listening&>(host.estimator(0));
+  const PointList none;
+  host.onView(ViewData{none, none, Eigen::Isometry3d::Identity(), 1.0});
+  EXPECT_FALSE(host.enabled(0));
+  EXPECT_EQ(est.heard, std::vector<bool>({false}));
+  host.onView(ViewData{none, none, Eigen::Isometry3d::Identity(), 2.0});  // not called: disabled
+  EXPECT_EQ(est.heard, std::vector<bool>({false}));
+  host.reset();
+  EXPECT_TRUE(host.enabled(0));
+  EXPECT_EQ(est.heard, std::vector<bool>({false, true}));
+}
+
 // Out of memory in a view: the host drops that view and counts it, the estimator stays
 // enabled with the fruit it had, and the next view goes in.
 TEST(ShapeEstimatorHost, OutOfMemoryDropsTheViewNotTheEstimatorOrItsMap) {
@@ -335,6 +376,10 @@ TEST(ShapeEstimatorHost, OutOfMemoryDropsTheViewNotTheEstimatorOrItsMap) {
   // Seen from both sides now: closer to the truth than the half-seen fit.
   EXPECT_LT(std::abs(after[0].volume - truth.volume()), std::abs(before[0].volume - truth.volume()) + 1e-9);
   EXPECT_NEAR(after[0].volume, truth.volume(), 0.05 * truth.volume());
+  // Counted since start or reset: after one, the drop no longer shows.
+  host.reset();
+  EXPECT_EQ(host.outOfMemoryDrops(0), 0u);
+  EXPECT_TRUE(host.lastError(0).empty());
 }
 
 // A view of the planner loop that throws (here bad_alloc from the per-view callback) is dropped

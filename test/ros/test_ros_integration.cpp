@@ -537,6 +537,15 @@ TEST(Plugin, FullResolutionFruitCloudTopicFeedsTheMapInsteadOfThePlannersViews) 
   ASSERT_TRUE(waitFor([&] { return diagnosticCount(*plugin, "points skipped (NaN/Inf, range)") >= skipped + 5; }, 10.0));
   EXPECT_EQ(diagnosticCount(*plugin, "points skipped (NaN/Inf, range)"), skipped + 5);
   EXPECT_EQ(plugin->fruits().size(), 1u);
+  // Clouds that cannot be placed are skipped and counted: one in the map frame (no sensor
+  // origin), one in a frame tf does not know.
+  const std::string clouds_skipped = "fruit clouds skipped (malformed, wrong frame, no transform, dropped)";
+  EXPECT_EQ(diagnosticCount(*plugin, clouds_skipped), 0u);
+  pub.publish(ros_io::toCloud(PointList(3, s.truth.t), "world", ros::Time(0)));
+  pub.publish(ros_io::toCloud(PointList(3, s.truth.t), "fsc_unknown_frame", ros::Time(0)));
+  EXPECT_TRUE(waitFor([&] { return diagnosticCount(*plugin, clouds_skipped) == 2; }, 10.0))
+      << diagnosticCount(*plugin, clouds_skipped);
+  EXPECT_EQ(plugin->fruits().size(), 1u);
   plugin.reset();
 }
 

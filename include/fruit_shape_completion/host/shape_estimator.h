@@ -71,6 +71,13 @@ class ShapeEstimator {
   // Asks a running update() to return soon without publishing its results: the estimator is
   // going away. May be called from any thread; the default does nothing.
   virtual void cancelUpdate() {}
+  // The host has disabled the estimator (false: one of its calls threw) or enabled it again (true:
+  // a reset succeeded). An estimator that also maps or publishes on its own (its own
+  // subscriptions, say) stops and resumes there too, so that it does not go on publishing what
+  // its status calls disabled. Called under the host's lock, so that a failure and a reset in two
+  // threads leave both sides agreeing: it must only record the state (no call into the host, no
+  // waiting), and must not throw. The default does nothing.
+  virtual void enabledChanged(bool /*enabled*/) noexcept {}
 };
 
 // Owns the estimators; an estimator that throws is disabled with a message, never taking the
@@ -129,8 +136,11 @@ class ShapeEstimatorHost {
   std::size_t size() const;
   ShapeEstimator& estimator(std::size_t i) const;  // i < size()
   bool enabled(std::size_t i) const;
+  // The messages of the estimators disabled so far (the most recent kKeptErrors).
   std::vector<std::string> errors() const;
-  // The last error of estimator i ("" if none), and how many of its calls ran out of memory.
+  static constexpr std::size_t kKeptErrors = 100;
+  // The last error of estimator i ("" if none), and how many of its calls ran out of memory;
+  // both since start or the last reset that re-enabled it.
   std::string lastError(std::size_t i) const;
   std::size_t outOfMemoryDrops(std::size_t i) const;
   // Resets every estimator and re-enables those whose reset succeeds.

@@ -19,17 +19,33 @@ std::vector<std::vector<int>> euclideanClusters(const PointList& points, const C
   std::vector<std::vector<int>> clusters;
   if (left_out) *left_out = ClustersLeftOut();
   if (points.empty() || !(params.tolerance > 0.0)) return clusters;
-  std::vector<std::pair<std::uint64_t, int>> keyed;
+  // Sorted by packed key, then by the cell itself: the key wraps every 2^21 cells (2.6 km at a
+  // 1 cm tolerance), and points of two cells that share a key must not share a representative.
+  struct Keyed {
+    std::uint64_t key;
+    GridCell cell;
+    int index;
+  };
+  std::vector<Keyed> keyed;
   keyed.reserve(points.size());
   const double inv_cube = 8.0 / params.tolerance;
   for (std::size_t i = 0; i < points.size(); ++i)
-    if (points[i].allFinite()) keyed.emplace_back(packCellKey(cellOf(points[i], inv_cube)), static_cast<int>(i));
-  std::sort(keyed.begin(), keyed.end());
+    if (points[i].allFinite()) {
+      const GridCell cell = cellOf(points[i], inv_cube);
+      keyed.push_back({packCellKey(cell), cell, static_cast<int>(i)});
+    }
+  std::sort(keyed.begin(), keyed.end(), [](const Keyed& a, const Keyed& b) {
+    if (a.key != b.key) return a.key < b.key;
+    if (a.cell != b.cell)
+      return std::lexicographical_compare(a.cell.data(), a.cell.data() + 3, b.cell.data(), b.cell.data() + 3);
+    return a.index < b.index;
+  });
   PointList reps;
   std::vector<int> rep_of(points.size(), -1);
   for (std::size_t k = 0; k < keyed.size(); ++k) {
-    if (k == 0 || keyed[k].first != keyed[k - 1].first) reps.push_back(points[static_cast<std::size_t>(keyed[k].second)]);
-    rep_of[static_cast<std::size_t>(keyed[k].second)] = static_cast<int>(reps.size()) - 1;
+    if (k == 0 || keyed[k].key != keyed[k - 1].key || keyed[k].cell != keyed[k - 1].cell)
+      reps.push_back(points[static_cast<std::size_t>(keyed[k].index)]);
+    rep_of[static_cast<std::size_t>(keyed[k].index)] = static_cast<int>(reps.size()) - 1;
   }
 
   std::vector<int> parent(reps.size());

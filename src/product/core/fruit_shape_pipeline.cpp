@@ -79,7 +79,9 @@ void PipelineParams::validate() const {
   if (!(center_lambda >= 0.0) || !std::isfinite(center_lambda))
     throw std::invalid_argument("center lambda must be a finite value >= 0");
   if (!std::isfinite(center_rim_margin)) throw std::invalid_argument("center_rim_margin must be finite");
-  if (missing.samples < 0) throw std::invalid_argument("missing-surface samples must be >= 0");
+  // Bounded: each fruit keeps its samples (and every one may become a planner target).
+  if (missing.samples < 0 || missing.samples > 100000)
+    throw std::invalid_argument("missing-surface samples must be in [0, 100000]");
   if (threads < 1 || threads > 64) throw std::invalid_argument("fit threads must be in [1, 64]");
   if (!(refit_tolerance >= 0.0) || !std::isfinite(refit_tolerance))
     throw std::invalid_argument("refit tolerance must be a finite value >= 0");

@@ -9,7 +9,8 @@
 namespace fruit_shape_completion {
 
 void OutlierFilterParams::validate() const {
-  if (k < 1) throw std::invalid_argument("outlier filter k must be >= 1");
+  // Bounded: the filter keeps k distances per point (a million points at k = 1000 is 4 GB).
+  if (k < 1 || k > 1000) throw std::invalid_argument("outlier filter k must be in [1, 1000]");
   if (!(std_mul > 0.0) || !std::isfinite(std_mul))
     throw std::invalid_argument("outlier filter std_mul must be a finite value > 0");
   if (!(search_radius > 0.0) || !std::isfinite(search_radius))

@@ -282,8 +282,9 @@ void TsdfIntegratorParams::validate() const {
     throw std::invalid_argument("tsdf truncation must be at least 1 voxel");
   if (!(max_weight >= 1e-6) || !std::isfinite(max_weight))
     throw std::invalid_argument("tsdf max_weight must be a finite value >= 1e-6");
-  if (!(min_range >= 0.0) || !(max_range > min_range) || !std::isfinite(max_range))
-    throw std::invalid_argument("tsdf ranges must satisfy 0 <= min_range < max_range");
+  // Bounded: carving free space steps through every voxel of a ray.
+  if (!(min_range >= 0.0) || !(max_range > min_range) || !(max_range <= 100.0))
+    throw std::invalid_argument("tsdf ranges must satisfy 0 <= min_range < max_range <= 100 m");
   if (max_points < 1) throw std::invalid_argument("tsdf max_points must be >= 1");
   if (remove_outliers) outliers.validate();
 }
@@ -340,7 +341,11 @@ IntegrationReport TsdfIntegrator::integrateImpl(TsdfMap& map, const PointList& p
     for (std::size_t i = 0; i < view.ends.size(); ++i) {
       const Eigen::Vector3d& p = view.ends[i];
       const double range = (p - origin).norm();
-      if (outlier[i] || !(range > 0.0)) continue;  // a point at the sensor has no ray direction
+      if (outlier[i]) continue;
+      if (!(range > 0.0)) {  // points at the sensor have no ray direction (possible with min_range 0)
+        report.out_of_range += static_cast<std::size_t>(view.counts[i]);
+        continue;
+      }
       const Eigen::Vector3d dir = (p - origin) / range;
       // Behind the surface a grazing ray soon leaves a curved fruit again; the voxels it would
       // then mark as inside lie outside. Its band there is cut to tau * cos(incidence).

@@ -104,8 +104,12 @@ void ShapeEstimatorHost::fail(std::size_t i, const std::string& what, bool alway
     if (!enabled_[i] && !always) return;  // another thread's call failed first and said so
     enabled_[i] = 0;
     msg = "shape estimator '" + estimators_[i]->name() + "' disabled: " + what;
+    // The most recent only: an estimator that fails after every reset of a long evaluation
+    // would otherwise grow the list without end.
+    if (errors_.size() >= kKeptErrors) errors_.erase(errors_.begin());
     errors_.push_back(msg);
     last_error_[i] = msg;
+    estimators_[i]->enabledChanged(false);
   }
   report(msg);
 }
@@ -303,8 +307,14 @@ void ShapeEstimatorHost::reset() {
     ShapeEstimator& e = estimator(i);
     try {
       e.reset();
-      std::lock_guard<std::mutex> lock(mutex_);
-      enabled_[i] = 1;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        enabled_[i] = 1;
+        // Counted since start or reset: a drop before it no longer colours the estimator's status.
+        out_of_memory_[i] = 0;
+        last_error_[i].clear();
+        e.enabledChanged(true);
+      }
     } catch (const std::exception& ex) {
       fail(i, std::string("reset failed: ") + ex.what(), true);
     } catch (...) {

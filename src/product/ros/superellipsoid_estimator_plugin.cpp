@@ -73,6 +73,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     // Fits the plugin starts itself (fruit clouds, a camera at rest, a loaded map) run here,
     // never in a subscriber's or a service's callback.
     own_updates_ = std::make_unique<host::UpdateWorker>([this] {
+      if (!host_enabled_) return;  // disabled by the host: nothing of its own either
       try {
         update();
       } catch (const std::exception& e) {  // std::bad_alloc among them: keep the last results
@@ -162,6 +163,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void cancelUpdate() override {
     if (estimator_) estimator_->cancelUpdate();
   }
+  void enabledChanged(bool enabled) noexcept override { host_enabled_ = enabled; }
   std::vector<FruitEstimate> fruits() const override { return check(), estimator_->fruits(); }
   PointList extraTargets() const override { return check(), estimator_->extraTargets(); }
   ShapeTargets viewTargets() const override { return check(), estimator_->viewTargets(); }
@@ -179,7 +181,8 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     publisher_->publish({}, SurfaceBlocks(), ros::Time::now());
     published_ = estimator_->sharedFruits();  // the cleared results, published just now
     // Counted since start or reset, as the estimator's counters.
-    for (auto* counter : {&fruit_cloud_non_finite_, &fallback_views_, &no_frame_, &no_tf_, &bad_frames_, &rest_no_tf_})
+    for (auto* counter : {&fruit_cloud_non_finite_, &fruit_clouds_skipped_, &fallback_views_, &no_frame_, &no_tf_,
+                          &bad_frames_, &rest_no_tf_})
       *counter = 0;
     {
       std::lock_guard<std::mutex> still_lock(still_mutex_);
@@ -213,6 +216,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
              std::to_string(s.undersized_points)},
             {"fruit volumes: median 90 % interval half-width [%]", trust.first},
             {"fruit centres: median 90 % radius [mm]", trust.second},
+            {"fruit clouds skipped (malformed, wrong frame, no transform, dropped)", std::to_string(fruit_clouds_skipped_)},
             {"camera frames received", std::to_string(frames_received_)},
             {"views fed by their camera frame", std::to_string(s.input.camera_frames)},
             {"views fed by their own (1 cm) cloud: no frame paired", std::to_string(fallback_views_)},
@@ -252,12 +256,14 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     }
   }
   void onFruitCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    if (!host_enabled_) return;  // its status says disabled: it maps nothing until a reset
     try {
       PointList points;
       std::size_t non_finite = 0;
       std::string error;
       if (!ros_io::fromCloud(*msg, &points, &non_finite, &error)) {
-        ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: %s", name_.c_str(), error.c_str());
+        ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped (%zu so far): %s", name_.c_str(), ++fruit_clouds_skipped_,
+                          error.c_str());
         return;
       }
       if (non_finite > 0) {
@@ -266,8 +272,10 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
                           so_far);
       }
       if (msg->header.frame_id.empty() || msg->header.frame_id == map_frame_) {
-        ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: it must be in the camera frame (the sensor origin), not '%s'",
-                          name_.c_str(), msg->header.frame_id.c_str());
+        ROS_WARN_THROTTLE(10.0,
+                          "%s: fruit cloud skipped (%zu so far): it must be in the camera frame (the sensor origin), "
+                          "not '%s'",
+                          name_.c_str(), ++fruit_clouds_skipped_, msg->header.frame_id.c_str());
         return;
       }
       const Eigen::Isometry3d sensor_to_map = tf2::transformToEigen(
@@ -276,9 +284,10 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       integrate({points, points, sensor_to_map, msg->header.stamp.toSec(), host::ViewSource::kFruitCloud});
       own_updates_->request();
     } catch (const tf2::TransformException& e) {
-      ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped: no transform to %s (%s)", name_.c_str(), map_frame_.c_str(), e.what());
+      ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped (%zu so far): no transform to %s (%s)", name_.c_str(),
+                        ++fruit_clouds_skipped_, map_frame_.c_str(), e.what());
     } catch (const std::exception& e) {  // std::bad_alloc among them: drop this cloud, keep running
-      ROS_ERROR("%s: fruit cloud dropped: %s", name_.c_str(), e.what());
+      ROS_ERROR("%s: fruit cloud dropped (%zu so far): %s", name_.c_str(), ++fruit_clouds_skipped_, e.what());
     }
   }
   // The buffered frame nearest the view's stamp, with its pose from tf at the frame's stamp,
@@ -390,11 +399,16 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     }
   }
   void integrateIfStill(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    if (!host_enabled_) return;  // its status says disabled: it maps nothing until a reset
     Eigen::Isometry3d pose;
     try {
       // Waits for a late transform only while transforms come: with none (a tf tree without the
-      // camera) every frame would hold a spinner thread for the whole wait.
-      const ros::Duration wait(rest_tf_ok_ ? 0.1 : 0.0);
+      // camera) every frame would hold a spinner thread for the whole wait. After a failure one
+      // frame a second still waits, so frames that merely come before their transform recover.
+      const double now = ros::WallTime::now().toSec();
+      const bool retry = now - rest_tf_retried_.load() >= 1.0;
+      if (!rest_tf_ok_ && retry) rest_tf_retried_ = now;
+      const ros::Duration wait(rest_tf_ok_ || retry ? 0.1 : 0.0);
       pose = tf2::transformToEigen(tf_buffer_->lookupTransform(map_frame_, msg->header.frame_id, msg->header.stamp, wait));
       rest_tf_ok_ = true;
     } catch (const tf2::TransformException& e) {
@@ -600,13 +614,16 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::atomic<double> last_planner_view_{0.0};  // wall time [s]
   std::atomic<std::size_t> planner_views_{0}, frames_received_{0}, fallback_views_{0}, no_frame_{0}, no_tf_{0}, bad_frames_{0},
       not_organized_{0}, clock_jumps_{0}, too_large_{0}, rest_no_tf_{0};
+  std::atomic<bool> host_enabled_{true};  // the host's verdict: disabled, its own inputs stop too
   std::atomic<bool> rest_tf_ok_{true};  // the last lookup for a frame without a planner found its transform
+  std::atomic<double> rest_tf_retried_{0.0};  // [s, wall] when a frame last waited after a failure
   // An external detector's masks (camera_mask_topic), matched to frames by stamp.
   ros::Subscriber masks_sub_;
   std::mutex masks_mutex_;
   std::deque<sensor_msgs::ImageConstPtr> masks_;  // oldest first, at most max_masks_
   std::size_t max_masks_ = 16;
   std::atomic<std::size_t> masks_received_{0}, masks_refused_{0}, frames_without_mask_{0};
+  std::atomic<std::size_t> fruit_clouds_skipped_{0};  // detector fruit clouds that never reached the map
   std::atomic<std::size_t> fruit_cloud_non_finite_{0};  // NaN/Inf points of detector fruit clouds, dropped on reading
   std::mutex still_mutex_;  // guards rest_
   ros_io::CameraRest rest_;  // without a planner: when the camera has come to rest
