@@ -1035,14 +1035,16 @@ TEST(ShapeEstimatorHost, ConcurrentViewsQueriesResetsAndThrowingEstimators) {
   EXPECT_GT(queries.load(), 0);
   EXPECT_GT(resets.load(), 0);
 
-  // Every failure was recorded once per disabling and reported as recorded. Two estimators failing
+  // Every failure was recorded once per disabling and reported as recorded (the host keeps the
+  // most recent kKeptErrors: a slow machine resets and fails more often). Two estimators failing
   // at once in two threads are recorded under the host's lock but reported after it, so the two
-  // lists may order such a pair differently: compared as sets of messages.
+  // lists may order such a pair differently: compared as multisets.
   std::vector<std::string> errors = host.errors();
   std::vector<std::string> reported_sorted = reported;
+  EXPECT_EQ(errors.size(), std::min(reported.size(), ShapeEstimatorHost::kKeptErrors));
   std::sort(errors.begin(), errors.end());
   std::sort(reported_sorted.begin(), reported_sorted.end());
-  EXPECT_EQ(errors, reported_sorted);
+  EXPECT_TRUE(std::includes(reported_sorted.begin(), reported_sorted.end(), errors.begin(), errors.end()));
   for (const auto& e : errors)
     EXPECT_TRUE(e.find("flaky on purpose") != std::string::npos || e.find("broken on purpose") != std::string::npos) << e;
 

@@ -27,6 +27,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <topic_tools/shape_shifter.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -259,13 +260,25 @@ TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUns
   EXPECT_TRUE(estimators.extraTargets().empty());
 }
 
-TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids) {
+// fruit_mapping_node's input and output as upstream names them: PointcloudWithRoi in, the
+// superellipsoids out (the last message kept).
+struct MappingNodeTopics {
   ros::NodeHandle nh;
   ros::Publisher pub = nh.advertise<pointcloud_roi_msgs::PointcloudWithRoi>(ros_io::kUpstreamRoiTopic, 10);
   topic_tools::ShapeShifter::ConstPtr last;
   ros::Subscriber sub = nh.subscribe<topic_tools::ShapeShifter>(
-      ros_io::kUpstreamSuperellipsoidsTopic, 5, [&](const topic_tools::ShapeShifter::ConstPtr& m) { last = m; });
-  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0 && sub.getNumPublishers() > 0; }, 30.0));
+      ros_io::kUpstreamSuperellipsoidsTopic, 5, [this](const topic_tools::ShapeShifter::ConstPtr& m) { last = m; });
+  bool connected() {
+    return waitFor([&] { return pub.getNumSubscribers() > 0 && sub.getNumPublishers() > 0; }, 30.0);
+  }
+};
+
+TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids) {
+  MappingNodeTopics topics;
+  ASSERT_TRUE(topics.connected());
+  ros::NodeHandle& nh = topics.nh;
+  ros::Publisher& pub = topics.pub;
+  topic_tools::ShapeShifter::ConstPtr& last = topics.last;
   const FruitOnALeaf s;
   for (const auto& camera : s.cameras) {
     pub.publish(roiCloud(s.scene, 1, camera));
@@ -344,15 +357,16 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
   std::remove(file.c_str());
 }
 
-// As the planner: a cloud outside the map frame is taken there by tf at its stamp, whatever
-// transform its message carries; one whose frame tf does not know is skipped and counted.
+// A cloud outside the map frame is taken there by tf at its stamp, its message's transform read as
+// the sensor's pose in the cloud's frame: a cloud in the camera frame (identity), and one in
+// another fixed frame as pointcloud_roi publishes in its own map frame (the camera's pose there).
+// One whose frame tf does not know is skipped and counted.
 TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
-  ros::NodeHandle nh;
-  ros::Publisher pub = nh.advertise<pointcloud_roi_msgs::PointcloudWithRoi>(ros_io::kUpstreamRoiTopic, 10);
-  topic_tools::ShapeShifter::ConstPtr last;
-  ros::Subscriber sub = nh.subscribe<topic_tools::ShapeShifter>(
-      ros_io::kUpstreamSuperellipsoidsTopic, 5, [&](const topic_tools::ShapeShifter::ConstPtr& m) { last = m; });
-  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0 && sub.getNumPublishers() > 0; }, 30.0));
+  MappingNodeTopics topics;
+  ASSERT_TRUE(topics.connected());
+  ros::NodeHandle& nh = topics.nh;
+  ros::Publisher& pub = topics.pub;
+  topic_tools::ShapeShifter::ConstPtr& last = topics.last;
   std_srvs::Empty clear;
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
   tf2_ros::TransformBroadcaster tf;
@@ -378,21 +392,54 @@ TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
     tf.sendTransform(pose);
     msg.cloud.header.frame_id = frame;
     msg.cloud.header.stamp = pose.header.stamp;
-    msg.transform = geometry_msgs::Transform();  // not the sensor pose: tf is what counts
+    msg.transform = geometry_msgs::Transform();  // the sensor in its own frame
     msg.transform.rotation.w = 1.0;
     ros::WallDuration(0.05).sleep();
     pub.publish(msg);
     ros::WallDuration(0.2).sleep();
   }
   superellipsoid_msgs::SuperellipsoidArray arr;
-  ASSERT_TRUE(waitFor([&] {
-    if (!last) return false;
-    arr = asSuperellipsoidArray(*last);
-    return arr.superellipsoids.size() == 1;
-  }, 60.0)) << "no fruit from clouds in the camera frame";
-  const auto& m = arr.superellipsoids[0];
-  EXPECT_LT((Eigen::Vector3d(m.tx, m.ty, m.tz) - s.truth.t).norm(), 0.01);
-  EXPECT_NEAR(m.volume, s.truth.volume(), 0.25 * s.truth.volume());
+  auto oneFruitAtTheTruth = [&](const std::string& what) {
+    ASSERT_TRUE(waitFor([&] {
+      if (!last) return false;
+      arr = asSuperellipsoidArray(*last);
+      return arr.superellipsoids.size() == 1;
+    }, 60.0)) << "no fruit from clouds " << what;
+    const auto& m = arr.superellipsoids[0];
+    EXPECT_LT((Eigen::Vector3d(m.tx, m.ty, m.tz) - s.truth.t).norm(), 0.01) << what;
+    EXPECT_NEAR(m.volume, s.truth.volume(), 0.25 * s.truth.volume()) << what;
+  };
+  oneFruitAtTheTruth("in the camera frame");
+
+  // pointcloud_roi's own map frame 4 m from the node's: the sensor's pose there comes with the
+  // message. Taken for the sensor, that frame's origin would put every point beyond max_range.
+  ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
+  ASSERT_TRUE(waitFor([&] { return last && asSuperellipsoidArray(*last).superellipsoids.empty(); }, 10.0));
+  tf2_ros::StaticTransformBroadcaster static_tf;
+  const std::string roi_frame = "fsc_test_roi_map_" + std::to_string(::getpid());
+  Eigen::Isometry3d roi_from_world = Eigen::Isometry3d::Identity();
+  roi_from_world.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  roi_from_world.translation() = Eigen::Vector3d(4.0, 0.0, 0.0);
+  geometry_msgs::TransformStamped world_roi = tf2::eigenToTransform(roi_from_world.inverse());
+  world_roi.header.stamp = ros::Time::now();
+  world_roi.header.frame_id = "world";
+  world_roi.child_frame_id = roi_frame;
+  static_tf.sendTransform(world_roi);
+  ros::WallDuration(1.0).sleep();
+  for (const auto& camera : s.cameras) {
+    pointcloud_roi_msgs::PointcloudWithRoi msg = roiCloud(s.scene, 1, camera);  // world coordinates
+    for (sensor_msgs::PointCloud2Iterator<float> x(msg.cloud, "x"), y(msg.cloud, "y"), z(msg.cloud, "z"); x != x.end();
+         ++x, ++y, ++z) {
+      const Eigen::Vector3d q = roi_from_world * Eigen::Vector3d(*x, *y, *z);
+      *x = static_cast<float>(q.x()), *y = static_cast<float>(q.y()), *z = static_cast<float>(q.z());
+    }
+    msg.transform = tf2::eigenToTransform(roi_from_world * tf2::transformToEigen(msg.transform)).transform;
+    msg.cloud.header.frame_id = roi_frame;
+    msg.cloud.header.stamp = ros::Time::now();
+    pub.publish(msg);
+    ros::WallDuration(0.2).sleep();
+  }
+  oneFruitAtTheTruth("in pointcloud_roi's map frame");
 
   // A frame tf has never heard of: skipped, counted in /diagnostics, the fruit kept.
   std::string views_value;

@@ -23,8 +23,11 @@ namespace ros_io {
 
 // A PointcloudWithRoi's view in the map frame. As upstream: if cloud.header.frame_id is the map
 // frame, the points are in the map frame and `transform` is the sensor pose; otherwise
-// `transform` takes the cloud to the map. False with a message for a malformed cloud or a
-// non-finite transform; `bad_indices` counts indices out of range or on NaN points.
+// `transform` takes the cloud to the map. With `cloud_to_map` (a host that looks the cloud's frame
+// up itself) the points go through it and `transform` is read as pointcloud_roi writes it, the
+// sensor's pose in the cloud's frame (identity for a cloud in the camera frame). False with a
+// message for a malformed cloud or a non-finite transform; `bad_indices` counts indices out of
+// range or on NaN points.
 struct RoiView {
   PointList fruit, all;
   Eigen::Isometry3d sensor_pose = Eigen::Isometry3d::Identity();
@@ -32,7 +35,7 @@ struct RoiView {
 };
 bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
                const geometry_msgs::Transform& transform, const std::string& map_frame, RoiView* view,
-               std::string* error);
+               std::string* error, const geometry_msgs::Transform* cloud_to_map = nullptr);
 
 // One planning round's shape targets in the planner's types (the patch adds `points` to the ROI
 // contour sampler's pool; `directions` as extraTargets gives them) and what a sampled view gains
@@ -80,7 +83,8 @@ class RoiPlannerShapeEstimators {
   // fits run on the estimators' own threads, views arriving meanwhile coalesce into the next
   // fit. Never throws: a malformed cloud or bad indices are logged, counted and skipped.
   void insertView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
-                  const geometry_msgs::Transform& transform, double time = 0.0);
+                  const geometry_msgs::Transform& transform, double time = 0.0,
+                  const geometry_msgs::Transform* cloud_to_map = nullptr);
   // A view its host could not hand over (no transform to the map frame, say): counted and
   // warned as the views insertView skips.
   void skipView(const std::string& why);

@@ -3,9 +3,10 @@
 // through pointcloud_roi or from a bag). Hosts the estimators listed in ~shape_estimators exactly
 // as the patched roi_viewpoint_planner does (ros_io::RoiPlannerShapeEstimators), so each
 // publishes in ~<name>/ and offers clear_map, save_map and load_map there; ~clear_map clears
-// them all (upstream calls /voxblox_node/clear_map on reset: remap it here). As the planner: a
-// cloud in the map frame comes with its sensor pose in the message; any other cloud is taken to
-// the map frame by tf at its stamp (the message's transform then unused), or skipped and counted.
+// them all (upstream calls /voxblox_node/clear_map on reset: remap it here). A cloud in the map
+// frame comes with its sensor pose in the message; any other cloud is taken to the map frame by
+// tf at its stamp, its message's transform read as the sensor's pose in the cloud's frame (as
+// pointcloud_roi writes it; identity for a cloud in the camera frame), or skipped and counted.
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 #include <fruit_shape_completion/ros/upstream_messages.h>
 
@@ -40,16 +41,18 @@ int main(int argc, char** argv) {
   ros::Subscriber sub = pnh.subscribe<pointcloud_roi_msgs::PointcloudWithRoi>(
       roi_topic, 2, [&](const pointcloud_roi_msgs::PointcloudWithRoiConstPtr& msg) {
         const auto& header = msg->cloud.header;
-        geometry_msgs::Transform transform = msg->transform;
-        if (header.frame_id != map_frame) {
-          try {
-            transform = tf_buffer.lookupTransform(map_frame, header.frame_id, header.stamp, ros::Duration(tf_wait)).transform;
-          } catch (const tf2::TransformException& e) {
-            estimators->skipView("no transform from " + header.frame_id + " to " + map_frame + ": " + e.what());
-            return;
-          }
+        if (header.frame_id == map_frame) {
+          estimators->insertView(msg->cloud, msg->roi_indices, msg->transform, header.stamp.toSec());
+          return;
         }
-        estimators->insertView(msg->cloud, msg->roi_indices, transform, header.stamp.toSec());
+        geometry_msgs::Transform to_map;
+        try {
+          to_map = tf_buffer.lookupTransform(map_frame, header.frame_id, header.stamp, ros::Duration(tf_wait)).transform;
+        } catch (const tf2::TransformException& e) {
+          estimators->skipView("no transform from " + header.frame_id + " to " + map_frame + ": " + e.what());
+          return;
+        }
+        estimators->insertView(msg->cloud, msg->roi_indices, msg->transform, header.stamp.toSec(), &to_map);
       });
   ros::ServiceServer clear = pnh.advertiseService<std_srvs::Empty::Request, std_srvs::Empty::Response>(
       "clear_map", [&](std_srvs::Empty::Request&, std_srvs::Empty::Response&) {

@@ -16,14 +16,19 @@ RoiPlannerShapeEstimators::RoiPlannerShapeEstimators(ros::NodeHandle& planner_nh
 
 bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
                const geometry_msgs::Transform& transform, const std::string& map_frame, RoiView* view,
-               std::string* error) {
+               std::string* error, const geometry_msgs::Transform* cloud_to_map) {
   if (!fromRoiCloud(cloud, roi_indices, &view->all, &view->fruit, &view->bad_indices, error)) return false;
   view->sensor_pose = tf2::transformToEigen(transform);
-  if (!view->sensor_pose.matrix().allFinite()) {
+  const Eigen::Isometry3d to_map = cloud_to_map ? tf2::transformToEigen(*cloud_to_map) : Eigen::Isometry3d::Identity();
+  if (!view->sensor_pose.matrix().allFinite() || !to_map.matrix().allFinite()) {
     *error = "non-finite transform";
     return false;
   }
-  if (cloud.header.frame_id != map_frame) {
+  if (cloud_to_map) {
+    view->sensor_pose = to_map * view->sensor_pose;
+    for (auto& p : view->all) p = to_map * p;
+    for (auto& p : view->fruit) p = to_map * p;
+  } else if (cloud.header.frame_id != map_frame) {
     for (auto& p : view->all) p = view->sensor_pose * p;
     for (auto& p : view->fruit) p = view->sensor_pose * p;
   }
@@ -32,7 +37,8 @@ bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int
 
 void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud,
                                            const std::vector<std::int32_t>& roi_indices,
-                                           const geometry_msgs::Transform& transform, double time) {
+                                           const geometry_msgs::Transform& transform, double time,
+                                           const geometry_msgs::Transform* cloud_to_map) {
   if (empty()) return;
   {
     std::lock_guard<std::mutex> lock(calls_mutex_);
@@ -49,7 +55,7 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
   try {
     RoiView view;
     std::string error;
-    if (!toRoiView(cloud, roi_indices, transform, map_frame_, &view, &error)) {
+    if (!toRoiView(cloud, roi_indices, transform, map_frame_, &view, &error, cloud_to_map)) {
       const std::size_t skipped = ++loader_.plannerViewDrops().views;
       ROS_WARN("shape estimators: view skipped (%zu so far): %s", skipped, error.c_str());
       return;
@@ -76,8 +82,13 @@ RoiPlannerShapeEstimators::~RoiPlannerShapeEstimators() {
   closing_ = true;
   // A running call uses the estimators destroyed after this: it is waited for however long it
   // takes (a view's integration is bounded work), never abandoned.
-  while (!calls_done_.wait_for(lock, std::chrono::seconds(2), [this] { return calls_ == 0; }))
-    ROS_WARN("shape estimators: unloading, waiting for %d view call(s) still running", calls_);
+  for (int waited = 2; !calls_done_.wait_for(lock, std::chrono::seconds(2), [this] { return calls_ == 0; }); waited += 2) {
+    if (waited < 30)
+      ROS_WARN("shape estimators: unloading, waiting for %d view call(s) still running", calls_);
+    else  // a call waiting on ROS time (a tf lookup) with the clock stopped: say so, keep waiting
+      ROS_ERROR_THROTTLE(30.0, "shape estimators: unloading, %d view call(s) still running after %d s (is /clock stopped?)",
+                         calls_, waited);
+  }
 }
 
 std::vector<octomap::point3d> RoiPlannerShapeEstimators::extraTargets() const {

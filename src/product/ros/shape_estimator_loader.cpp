@@ -51,7 +51,7 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
   if (report_view_drops)
     diagnostics_->add("shape estimators: PointcloudWithRoi input", [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
       const std::size_t views = planner_drops_.views, indices = planner_drops_.indices;
-      s.add("views skipped (malformed, or dropped)", views);
+      s.add("views skipped (malformed, no transform, or dropped)", views);
       s.add("ROI indices skipped (out of range, non-finite points)", indices);
       if (views + indices > 0) s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "input skipped (see the log)");
       else s.summary(diagnostic_msgs::DiagnosticStatus::OK, "all input taken");

@@ -538,6 +538,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     return "?";
   }
   bool loadMap(FilePath::Request& req, FilePath::Response& res) {
+    if (!host_enabled_) {  // nothing would be fitted, and the reset that enables it clears the map
+      res.success = false;
+      res.message = "estimator disabled (see /diagnostics); reset the planner's estimators, then load";
+      return true;
+    }
     std::string error, warning;
     res.success = estimator_->loadMap(req.file_path, &error, &warning);
     if (!warning.empty()) ROS_WARN("%s: %s", name_.c_str(), warning.c_str());
