@@ -24,9 +24,11 @@ namespace bench {
 
 constexpr unsigned kEpisodeSeeds[] = {3, 4, 5};
 
-// Runs the episode; returns the scene it ran on. on_view gets what the estimators would get.
+// Runs the episode; returns the scene it ran on. on_view gets what the estimators would get;
+// on_tree, if given, the planner's octree after each view.
 inline std::string recordEpisode(planner::PlannerParams::Input input, unsigned seed,
-                                 const std::function<void(const PinholeCamera&, const host::ViewData&)>& on_view) {
+                                 const std::function<void(const PinholeCamera&, const host::ViewData&)>& on_view,
+                                 const std::function<void(const planner::RoiOcTree&)>& on_tree = nullptr) {
   const char* env = std::getenv("FSC_SHARED_DATA");
   std::string name = std::string(env ? env : "../shared/data") + "/scenes/scenario2_world19.yaml";
   sim::Scene scene;
@@ -50,9 +52,10 @@ inline std::string recordEpisode(planner::PlannerParams::Input input, unsigned s
   const sim::RgbdRenderer renderer(scene, triangle_fruit, shading);
   host::ShapeEstimatorHost host;  // none: the episode only records what the camera saw
   planner::runEpisode(scene, renderer, truth, host, params,
-                      [&](const planner::ViewRecord&, const planner::RoiOcTree&, const sim::RgbdFrame& frame,
+                      [&](const planner::ViewRecord&, const planner::RoiOcTree& tree, const sim::RgbdFrame& frame,
                           const host::ViewData& view) {
                         on_view(frame.camera, view);
+                        if (on_tree) on_tree(tree);
                         return true;
                       });
   return name;
