@@ -782,6 +782,30 @@ TEST(ShapeEstimatorHost, LiveTargetSettingsApplyWithoutANewView) {
   EXPECT_GT(host.sharedViewTargets()->points.size(), 5u);
 }
 
+// A live change of target settings alone leaves the pipeline's clusters as they were: the next
+// view is clustered around the blocks it changed, not over the whole map again; a change of a
+// fit setting forms them all again.
+TEST(SuperellipsoidEstimator, TargetSettingsAloneDoNotReclusterTheMap) {
+  SuperellipsoidEstimator est;
+  const Superellipsoid truth = mapPartialViews(est, 4);
+  ASSERT_TRUE(est.lastPipelineStats().local);
+  auto anotherView = [&](int k) {
+    const PartialView view(truth, Eigen::Vector3d(std::cos(k), 1, std::sin(k)), k);
+    est.insertView(view.data(k));
+    est.update();
+  };
+  EstimatorLiveParams live = est.liveParams();
+  live.targets.per_fruit = 7;
+  live.targets.view_gain = 2.0;
+  est.setLiveParams(live);
+  anotherView(10);
+  EXPECT_TRUE(est.lastPipelineStats().local);
+  live.refit_tolerance *= 2.0;
+  est.setLiveParams(live);
+  anotherView(11);
+  EXPECT_FALSE(est.lastPipelineStats().local);
+}
+
 TEST(ShapeEstimatorHost, TargetsWithNonFiniteValuesAreFixedOnceNotPassedOn) {
   // Another estimator's targets: a NaN point (dropped) and a NaN direction (made "any side").
   class DirtyTargets : public ShapeEstimator {

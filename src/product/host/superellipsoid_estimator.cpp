@@ -37,6 +37,18 @@ PipelineParams SuperellipsoidEstimator::pipelineWith(const EstimatorLiveParams& 
   return pipeline;
 }
 
+namespace {
+
+// Whether the live fields pipelineWith sets (its list) differ: a change of target or input
+// settings alone must not make the next update cluster the whole map again.
+bool liveFieldsDiffer(const PipelineParams& a, const PipelineParams& b) {
+  return a.refit_tolerance != b.refit_tolerance || a.fit.max_points != b.fit.max_points ||
+         a.fit.function_tolerance != b.fit.function_tolerance || a.fit.stall_tolerance != b.fit.stall_tolerance ||
+         a.fit.noise_bias != b.fit.noise_bias || a.fit.size_prior != b.fit.size_prior;
+}
+
+}  // namespace
+
 EstimatorLiveParams SuperellipsoidEstimator::liveParams() const {
   std::lock_guard<std::mutex> lock(live_mutex_);
   return live_;
@@ -215,7 +227,7 @@ void SuperellipsoidEstimator::update() {
     std::lock_guard<std::mutex> lock(live_mutex_);
     if (live_pending_) {
       const PipelineParams pipeline = pipelineWith(live_);
-      pipeline_.setParams(pipeline);
+      if (liveFieldsDiffer(pipeline, pipeline_.params())) pipeline_.setParams(pipeline);
       params_.shape_targets = live_.shape_targets;
       params_.targets = live_.targets;
       live_pending_ = false;
