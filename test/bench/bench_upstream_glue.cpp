@@ -125,6 +125,10 @@ static void BM_ViewClearance(benchmark::State& state) {
         [&](const planner::RoiOcTree& t) { kept = std::make_unique<planner::RoiOcTree>(t); });
     return kept;
   }();
+  if (!tree) {
+    state.SkipWithError("the episode took no view");
+    return;
+  }
   static const std::vector<Eigen::Vector3d> cameras = [] {
     std::vector<Eigen::Vector3d> out;
     std::mt19937 rng(11);
@@ -133,6 +137,7 @@ static void BM_ViewClearance(benchmark::State& state) {
     std::vector<Eigen::Vector3d> occupied;
     for (auto it = tree->begin_leafs(), end = tree->end_leafs(); it != end; ++it)
       if (tree->isNodeOccupied(*it)) occupied.emplace_back(it.getX(), it.getY(), it.getZ());
+    if (occupied.empty()) return out;
     std::uniform_int_distribution<std::size_t> pick(0, occupied.size() - 1);
     for (int i = 0; i < 500; ++i) {
       const Eigen::Vector3d d = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
@@ -140,6 +145,10 @@ static void BM_ViewClearance(benchmark::State& state) {
     }
     return out;
   }();
+  if (cameras.empty()) {
+    state.SkipWithError("the episode's map holds no occupied cell");
+    return;
+  }
   const double radius = 0.01 * static_cast<double>(state.range(0));
   const OccupiedNear near = occupiedCellsNear(*tree);
   std::size_t i = 0, crowded = 0, calls = 0;

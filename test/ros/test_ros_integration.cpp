@@ -276,22 +276,19 @@ struct MappingNodeTopics {
 TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids) {
   MappingNodeTopics topics;
   ASSERT_TRUE(topics.connected());
-  ros::NodeHandle& nh = topics.nh;
-  ros::Publisher& pub = topics.pub;
-  topic_tools::ShapeShifter::ConstPtr& last = topics.last;
   const FruitOnALeaf s;
   for (const auto& camera : s.cameras) {
-    pub.publish(roiCloud(s.scene, 1, camera));
+    topics.pub.publish(roiCloud(s.scene, 1, camera));
     ros::WallDuration(0.2).sleep();
   }
   superellipsoid_msgs::SuperellipsoidArray arr;
   ASSERT_TRUE(waitFor([&] {
-    if (!last) return false;
-    arr = asSuperellipsoidArray(*last);
-    return arr.superellipsoids.size() == 1 && last->getDataType() == "superellipsoid_msgs/SuperellipsoidArray";
-  }, 60.0)) << (last ? last->getDataType() : std::string("nothing received"));
-  EXPECT_EQ(last->getMD5Sum(), ros::message_traits::md5sum<superellipsoid_msgs::SuperellipsoidArray>());
-  EXPECT_NE(last->getMessageDefinition().find("MSG: superellipsoid_msgs/Superellipsoid"), std::string::npos);
+    if (!topics.last) return false;
+    arr = asSuperellipsoidArray(*topics.last);
+    return arr.superellipsoids.size() == 1 && topics.last->getDataType() == "superellipsoid_msgs/SuperellipsoidArray";
+  }, 60.0)) << (topics.last ? topics.last->getDataType() : std::string("nothing received"));
+  EXPECT_EQ(topics.last->getMD5Sum(), ros::message_traits::md5sum<superellipsoid_msgs::SuperellipsoidArray>());
+  EXPECT_NE(topics.last->getMessageDefinition().find("MSG: superellipsoid_msgs/Superellipsoid"), std::string::npos);
   // Field by field: the shape, pose (angles in degrees) and volume describe the true fruit.
   const auto& m = arr.superellipsoids[0];
   EXPECT_EQ(arr.header.frame_id, "world");
@@ -319,7 +316,7 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
 
   // Diagnostics: the estimator is running and reports its map.
   diagnostic_msgs::DiagnosticStatus diag;
-  ros::Subscriber dsub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+  ros::Subscriber dsub = topics.nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
         for (const auto& st : a->status)
           if (st.name.find("shape estimator superellipsoid") != std::string::npos) diag = st;
@@ -339,14 +336,14 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
   std_srvs::Empty clear;
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
   ASSERT_TRUE(waitFor([&] {
-    if (!last) return false;
-    arr = asSuperellipsoidArray(*last);
+    if (!topics.last) return false;
+    arr = asSuperellipsoidArray(*topics.last);
     return arr.superellipsoids.empty();
   }, 10.0)) << "clear_map left fruits";
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/superellipsoid/load_map", load));
   EXPECT_TRUE(load.response.success) << load.response.message;
   ASSERT_TRUE(waitFor([&] {
-    arr = asSuperellipsoidArray(*last);
+    arr = asSuperellipsoidArray(*topics.last);
     return arr.superellipsoids.size() == 1;
   }, 10.0)) << "load_map did not bring the fruit back";
   EXPECT_LT((Eigen::Vector3d(arr.superellipsoids[0].tx, arr.superellipsoids[0].ty, arr.superellipsoids[0].tz) - s.truth.t).norm(), 0.01);
@@ -364,9 +361,6 @@ TEST(FruitMappingNode, TakesUpstreamRoiCloudsAndPublishesUpstreamSuperellipsoids
 TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
   MappingNodeTopics topics;
   ASSERT_TRUE(topics.connected());
-  ros::NodeHandle& nh = topics.nh;
-  ros::Publisher& pub = topics.pub;
-  topic_tools::ShapeShifter::ConstPtr& last = topics.last;
   std_srvs::Empty clear;
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
   tf2_ros::TransformBroadcaster tf;
@@ -395,14 +389,14 @@ TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
     msg.transform = geometry_msgs::Transform();  // the sensor in its own frame
     msg.transform.rotation.w = 1.0;
     ros::WallDuration(0.05).sleep();
-    pub.publish(msg);
+    topics.pub.publish(msg);
     ros::WallDuration(0.2).sleep();
   }
   superellipsoid_msgs::SuperellipsoidArray arr;
   auto oneFruitAtTheTruth = [&](const std::string& what) {
     ASSERT_TRUE(waitFor([&] {
-      if (!last) return false;
-      arr = asSuperellipsoidArray(*last);
+      if (!topics.last) return false;
+      arr = asSuperellipsoidArray(*topics.last);
       return arr.superellipsoids.size() == 1;
     }, 60.0)) << "no fruit from clouds " << what;
     const auto& m = arr.superellipsoids[0];
@@ -414,7 +408,7 @@ TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
   // pointcloud_roi's own map frame 4 m from the node's: the sensor's pose there comes with the
   // message. Taken for the sensor, that frame's origin would put every point beyond max_range.
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
-  ASSERT_TRUE(waitFor([&] { return last && asSuperellipsoidArray(*last).superellipsoids.empty(); }, 10.0));
+  ASSERT_TRUE(waitFor([&] { return topics.last && asSuperellipsoidArray(*topics.last).superellipsoids.empty(); }, 10.0));
   tf2_ros::StaticTransformBroadcaster static_tf;
   const std::string roi_frame = "fsc_test_roi_map_" + std::to_string(::getpid());
   Eigen::Isometry3d roi_from_world = Eigen::Isometry3d::Identity();
@@ -436,14 +430,14 @@ TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
     msg.transform = tf2::eigenToTransform(roi_from_world * tf2::transformToEigen(msg.transform)).transform;
     msg.cloud.header.frame_id = roi_frame;
     msg.cloud.header.stamp = ros::Time::now();
-    pub.publish(msg);
+    topics.pub.publish(msg);
     ros::WallDuration(0.2).sleep();
   }
   oneFruitAtTheTruth("in pointcloud_roi's map frame");
 
   // A frame tf has never heard of: skipped, counted in /diagnostics, the fruit kept.
   std::string views_value;
-  ros::Subscriber diag = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+  ros::Subscriber diag = topics.nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
         for (const auto& st : a->status) {
           if (st.name != "fruit_mapping_node: shape estimators: PointcloudWithRoi input") continue;
@@ -456,11 +450,11 @@ TEST(FruitMappingNode, CloudsInAnotherFrameAreTakenToTheMapByTf) {
   pointcloud_roi_msgs::PointcloudWithRoi lost = roiCloud(s.scene, 1, s.cameras[0], /*in_camera_frame=*/true);
   lost.cloud.header.frame_id = "fsc_no_such_frame";
   lost.cloud.header.stamp = ros::Time::now();
-  pub.publish(lost);
+  topics.pub.publish(lost);
   const std::string after = std::to_string(std::stoul(before) + 1);
   EXPECT_TRUE(waitFor([&] { return views_value == after; }, 10.0)) << "views skipped: " << before << " -> " << views_value;
   ros::WallDuration(0.5).sleep();
-  arr = asSuperellipsoidArray(*last);
+  arr = asSuperellipsoidArray(*topics.last);
   ASSERT_EQ(arr.superellipsoids.size(), 1u);
   EXPECT_LT((Eigen::Vector3d(arr.superellipsoids[0].tx, arr.superellipsoids[0].ty, arr.superellipsoids[0].tz) - s.truth.t).norm(), 0.01);
   ASSERT_TRUE(ros::service::call("/fruit_mapping_node/clear_map", clear));
