@@ -143,6 +143,11 @@ TEST(CameraFrameBuffer, PairsTheNearestFrameWithinTheToleranceAndStaysBounded) {
   EXPECT_EQ(buffer.push(cloudAt(0.5)), ros_io::CameraFrameBuffer::Push::kClockJumpedBack);
   EXPECT_EQ(buffer.size(), 1u);
   EXPECT_NE(buffer.take(ros::Time(0.5), 0.0), nullptr);
+  // A reset clears the frames and restarts the count of evicted ones.
+  EXPECT_EQ(buffer.evicted(), 2u);
+  buffer.clear();
+  EXPECT_EQ(buffer.size(), 0u);
+  EXPECT_EQ(buffer.evicted(), 0u);
 }
 
 // A view made from a frame (pointcloud_roi's output) can arrive before the frame itself: the

@@ -39,7 +39,7 @@ class CameraFrameBuffer {
   // and no frame at or after `stamp` has arrived, waits up to `wait` seconds (wall time) for
   // one: a view derived from a frame can overtake that frame on another connection.
   sensor_msgs::PointCloud2ConstPtr take(const ros::Time& stamp, double tolerance, double wait = 0.0);
-  void clear();
+  void clear();  // the frames and the evicted count
   std::size_t size() const;
   std::size_t evicted() const;  // frames pushed out by the bounds before any view took them
 

@@ -147,6 +147,7 @@ sensor_msgs::PointCloud2ConstPtr CameraFrameBuffer::takeLocked(const ros::Time& 
 void CameraFrameBuffer::clear() {
   std::lock_guard<std::mutex> lock(mutex_);
   frames_.clear();
+  evicted_ = 0;
   newest_ = ros::Time();
   pushed_.notify_all();
 }

@@ -180,9 +180,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     estimator_->reset();
     publisher_->publish({}, SurfaceBlocks(), ros::Time::now());
     published_ = estimator_->sharedFruits();  // the cleared results, published just now
-    // Counted since start or reset, as the estimator's counters.
+    // Counted since start or reset, as the estimator's counters (but "planner views received since
+    // start", which says so).
     for (auto* counter : {&fruit_cloud_non_finite_, &fruit_clouds_skipped_, &fallback_views_, &no_frame_, &no_tf_,
-                          &bad_frames_, &rest_no_tf_})
+                          &bad_frames_, &rest_no_tf_, &frames_received_, &not_organized_, &clock_jumps_, &too_large_,
+                          &masks_received_, &masks_refused_, &frames_without_mask_, &rests_at_planner_pose_})
       *counter = 0;
     {
       std::lock_guard<std::mutex> still_lock(still_mutex_);
