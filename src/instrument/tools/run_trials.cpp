@@ -179,7 +179,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.05, 10.0))->capture_default_str();
   app.add_option("--target-view-clearance", estimator.targets.view_clearance,
                  "[m] a view this close to the planner's mapped plant gains nothing from predicted surface; 0: no check")
-      ->check(CLI::Range(0.0, 0.5))->capture_default_str();
+      ->check(CLI::Range(0.0, ShapeTargetParams::kMaxViewClearance))->capture_default_str();
   app.add_flag_callback("--any-side", [&] { estimator.targets.view_side = false; },
                         "hand over no viewing directions: the planner views shape targets from any side");
   app.add_flag_callback("--no-noise", [&] { base.depth_noise = false; }, "noise-free depth");

@@ -242,8 +242,7 @@ bool TriangleMesh::writePly(const std::string& path, std::string* error) const {
       << "\nproperty list uchar int vertex_indices\nend_header\n";
   for (const auto& v : vertices) out << v.x() << ' ' << v.y() << ' ' << v.z() << '\n';
   for (const auto& t : triangles) out << "3 " << t.x() << ' ' << t.y() << ' ' << t.z() << '\n';
-  std::string ignored;
-  return writeFileAtomically(path, out.str(), error != nullptr ? error : &ignored);
+  return writeFileAtomically(path, out.str(), error);
 }
 
 }  // namespace fruit_shape_completion
