@@ -74,6 +74,8 @@ class NeighbourGrid {
     }
   }
   std::size_t size() const { return sorted_.size(); }
+  // The most points any one cell holds.
+  std::size_t largestCell() const { return largest_cell_; }
   const Point& pointAt(std::size_t position) const { return sorted_[position]; }
   int indexAt(std::size_t position) const { return order_[position]; }
 
@@ -128,6 +130,7 @@ class NeighbourGrid {
   int forwardRanges(const GridCell& cell, Ranges* ranges) const;
 
   double inv_cell_;
+  std::size_t largest_cell_ = 0;
   std::vector<int> order_;  // point indices grouped by cell
   PointList sorted_;        // the points in that order
   std::unordered_map<std::uint64_t, std::pair<int, int>> cells_;  // cell key -> range of order_

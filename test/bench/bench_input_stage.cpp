@@ -245,3 +245,38 @@ static void BM_PointcloudRoiChainPcl(benchmark::State& state) {
   });
 }
 BENCHMARK(BM_PointcloudRoiChainPcl)->Unit(benchmark::kMillisecond)->Iterations(10);
+
+// The stage's neighbour tests on hostile clouds, as a planner callback would run them. Arg 0:
+// pointcloud_roi's ROI cloud and its fruit points are 100 k identical points (a stalled driver);
+// Arg 1: a raw camera cloud wired where the 1 cm ROI cloud belongs (300 k points 0.2 mm apart
+// on a 5 cm fruit's front, all of them fruit). The veil test visits every point within 2.5 cm.
+static void BM_RoiCloudHostile(benchmark::State& state) {
+  PointList all;
+  if (state.range(0) == 0) all.assign(100000, Eigen::Vector3d(0.3, 0.2, 0.1));
+  else
+    for (int i = 0; i < 548; ++i)
+      for (int j = 0; j < 548; ++j) {
+        const double u = (i - 274) * 0.0002, v = (j - 274) * 0.0002;
+        if (u * u + v * v > 0.05 * 0.05) continue;
+        all.emplace_back(u, v, 0.4 + std::sqrt(0.0625 * 0.0625 - u * u - v * v) * -1.0 + 0.0625);
+      }
+  const FruitInputStage stage;
+  std::size_t kept = 0;
+  for (auto _ : state) kept = stage.processRoiCloud(all, all, Eigen::Vector3d::Zero()).fruit.size();
+  state.counters["points"] = static_cast<double>(all.size());
+  state.counters["kept"] = static_cast<double>(kept);
+}
+BENCHMARK(BM_RoiCloudHostile)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// The same identical points given as a detector's fruit cloud with the stage's outlier filter on.
+static void BM_FruitCloudHostile(benchmark::State& state) {
+  const PointList same(state.range(0), Eigen::Vector3d(0.3, 0.2, 0.1));
+  FruitInputParams p;
+  p.remove_outliers = true;
+  const FruitInputStage stage(p);
+  std::size_t kept = 0;
+  for (auto _ : state) kept = stage.processFruitCloud(same).fruit.size();
+  state.counters["points"] = static_cast<double>(same.size());
+  state.counters["kept"] = static_cast<double>(kept);
+}
+BENCHMARK(BM_FruitCloudHostile)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond)->Iterations(1);

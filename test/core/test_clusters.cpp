@@ -23,6 +23,35 @@ PointList scan(const Superellipsoid& s, double seen = 1.0, unsigned seed = 1) {
   p.seed = seed;
   return scanFruit(SyntheticFruit::fromSuperellipsoid(s), p);
 }
+
+// The outlier statistic's definition, by brute force over the finite points: a point's mean
+// distance to its k nearest (within search_radius; fewer there: the radius), flagged beyond the
+// mean by std_mul sample deviations.
+std::vector<char> outliersByDefinition(const PointList& pts, const OutlierFilterParams& params) {
+  std::vector<std::size_t> finite;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (pts[i].allFinite()) finite.push_back(i);
+  std::vector<double> mean_knn(pts.size(), 0.0);
+  const auto k = static_cast<std::size_t>(params.k);
+  for (std::size_t i : finite) {
+    std::vector<double> d;
+    for (std::size_t j : finite)
+      if (j != i) d.push_back((pts[j] - pts[i]).norm());
+    const bool enough = d.size() >= k;
+    if (enough) std::nth_element(d.begin(), d.begin() + static_cast<long>(k - 1), d.end());
+    if (enough) std::sort(d.begin(), d.begin() + static_cast<long>(k));
+    mean_knn[i] = enough && d[k - 1] <= params.search_radius
+                      ? std::accumulate(d.begin(), d.begin() + static_cast<long>(k), 0.0) / params.k
+                      : params.search_radius;
+  }
+  double mean = 0.0, var = 0.0;
+  for (std::size_t i : finite) mean += mean_knn[i] / static_cast<double>(finite.size());
+  for (std::size_t i : finite) var += (mean_knn[i] - mean) * (mean_knn[i] - mean) / static_cast<double>(finite.size() - 1);
+  const double threshold = mean + params.std_mul * std::sqrt(var);
+  std::vector<char> flags(pts.size(), 1);
+  for (std::size_t i : finite) flags[i] = mean_knn[i] > threshold;
+  return flags;
+}
 }  // namespace
 
 TEST(StatisticalOutlierFilter, FlagsStraysAsTheDefinitionSays) {
@@ -42,25 +71,11 @@ TEST(StatisticalOutlierFilter, FlagsStraysAsTheDefinitionSays) {
   const std::vector<char> flags = findStatisticalOutliers(pts, params);
   ASSERT_EQ(flags.size(), pts.size());
   EXPECT_TRUE(flags.back());  // the NaN point
-  // The definition, by brute force over the finite points.
   const std::size_t n = pts.size() - 1;
-  std::vector<double> mean_knn(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    std::vector<double> d;
-    for (std::size_t j = 0; j < n; ++j)
-      if (j != i) d.push_back((pts[j] - pts[i]).norm());
-    std::sort(d.begin(), d.end());
-    // k nearest within search_radius; fewer there: the radius.
-    const bool enough = d.size() >= static_cast<std::size_t>(params.k) && d[params.k - 1] <= params.search_radius;
-    mean_knn[i] = enough ? std::accumulate(d.begin(), d.begin() + params.k, 0.0) / params.k : params.search_radius;
-  }
-  const double mean = std::accumulate(mean_knn.begin(), mean_knn.end(), 0.0) / n;
-  double var = 0.0;
-  for (double m : mean_knn) var += (m - mean) * (m - mean) / (n - 1);
-  const double threshold = mean + params.std_mul * std::sqrt(var);
+  const std::vector<char> expected = outliersByDefinition(pts, params);
   std::size_t agree = 0, strays = 0, sphere_flags = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    agree += (mean_knn[i] > threshold) == (flags[i] != 0);
+    agree += expected[i] == flags[i];
     (i < on_sphere ? sphere_flags : strays) += flags[i];
   }
   EXPECT_GE(agree, n - 1);  // rounding may tip a point at the threshold
@@ -70,6 +85,27 @@ TEST(StatisticalOutlierFilter, FlagsStraysAsTheDefinitionSays) {
   EXPECT_THROW(params.validate(), std::invalid_argument);
   params.k = 1001;  // k distances kept per point: bounded
   EXPECT_THROW(params.validate(), std::invalid_argument);
+}
+
+TEST(StatisticalOutlierFilter, RepeatedPointsCountAsTheirOwnNearestNeighbours) {
+  // A driver repeating a point (or writing pixels without depth as the origin) piles thousands of
+  // copies into one cell: they are merged before the search, and the flags stay the definition's.
+  PointList pts = scan(sphere(0.04, Eigen::Vector3d(0.3, 0.1, 0.5)));
+  const std::size_t on_sphere = pts.size();
+  pts.insert(pts.end(), 3000, pts[7]);                        // copies of a surface point
+  pts.insert(pts.end(), 2500, Eigen::Vector3d(0.0, 0.0, 0.0));  // the origin, far from the fruit
+  pts.emplace_back(0.3, 0.1, 0.62);                           // one stray 8 cm off the surface
+  pts.insert(pts.end(), 3, Eigen::Vector3d(0.42, 0.1, 0.5));  // three copies of another: fewer than k
+  OutlierFilterParams params;
+  const std::vector<char> flags = findStatisticalOutliers(pts, params);
+  const std::vector<char> expected = outliersByDefinition(pts, params);
+  ASSERT_EQ(flags.size(), pts.size());
+  std::size_t agree = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) agree += flags[i] == expected[i];
+  EXPECT_GE(agree, pts.size() - 1);  // rounding may tip a point at the threshold
+  EXPECT_TRUE(flags[on_sphere + 5500]);  // the lone stray
+  EXPECT_TRUE(flags.back());             // a point with only two copies near it is still a stray
+  EXPECT_FALSE(flags[on_sphere + 4000]);  // a pile of copies is dense, as PCL would count it
 }
 
 

@@ -225,6 +225,26 @@ TEST(FruitInputStage, VeilPointsOfACoarseViewGoAndItsFrontStays) {
   EXPECT_EQ(FruitInputStage(off).processRoiCloud(all, fruit, origin).fruit.size(), fruit.size());
 }
 
+TEST(FruitInputStage, RepeatedPointsInAViewAreJudgedOnceAndKept) {
+  // The coarse view above with its centre voxel repeated 50 000 times in both clouds (a stalled
+  // driver): the copies are one surface with the face (not a veil), and the veil is found as before.
+  const Eigen::Vector3d origin(0, 0, 0);
+  PointList fruit;
+  for (int i = -3; i <= 3; ++i)
+    for (int j = -3; j <= 3; ++j) fruit.emplace_back(0.01 * i, 0.01 * j, 0.5);
+  const std::size_t face = fruit.size();
+  const Eigen::Vector3d rim(0.03, 0.0, 0.5);
+  for (int k = 1; k <= 4; ++k) fruit.push_back(rim + 0.01 * k * rim.normalized());
+  fruit.insert(fruit.end(), 50000, Eigen::Vector3d(0.0, 0.0, 0.5));
+  PointList all = fruit;
+  for (int i = -10; i <= 10; ++i)
+    for (int j = -10; j <= 10; ++j) all.emplace_back(0.01 * i, 0.01 * j, 0.65);
+  const FruitInput in = FruitInputStage().processRoiCloud(all, fruit, origin);
+  ASSERT_TRUE(in.ok());
+  EXPECT_EQ(in.veil, 5u);
+  EXPECT_EQ(in.fruit.size(), face - 1 + 50000);
+}
+
 TEST(FruitInputStage, MalformedInputIsRefusedWithAMessage) {
   const SphereFrame s;
   const FruitInputStage stage;

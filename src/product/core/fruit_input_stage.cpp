@@ -1,7 +1,12 @@
 #include <fruit_shape_completion/fruit_input_stage.h>
+#include <fruit_shape_completion/grid_cell.h>
 #include <fruit_shape_completion/neighbour_grid.h>
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
+#include <unordered_map>
+#include <unordered_set>
 #include <stdexcept>
 
 namespace fruit_shape_completion {
@@ -116,11 +121,9 @@ FruitInput FruitInputStage::processRoiCloud(const PointList& all, const PointLis
   }
   // A point with a neighbour nearly along its own camera ray lies where the depth jumps: the
   // blurred outline between a fruit and what is behind it, strung out along the rays.
-  const NeighbourGrid grid(all, params_.veil_radius);
   const double sin_limit = std::sin(params_.veil_angle_deg * M_PI / 180.0);
   const double min_gap2 = params_.veil_min_gap * params_.veil_min_gap;
-  for (const auto& p : fruit) {
-    if (!p.allFinite()) continue;
+  const auto isVeil = [&](const NeighbourGrid& grid, const Point& p) {
     const Eigen::Vector3d ray = (p - sensor_origin).normalized();
     bool veil = false;
     grid.forEachWithin(p, params_.veil_radius, [&](int, double d2, const Point& q) {
@@ -128,8 +131,41 @@ FruitInput FruitInputStage::processRoiCloud(const PointList& all, const PointLis
       const Eigen::Vector3d v = q - p;
       veil = v.cross(ray).norm() < sin_limit * std::sqrt(d2);
     });
+    return veil;
+  };
+  const auto judge = [&](bool veil, const Point& p) {
     if (veil) ++out.veil;
     else out.fruit.push_back(p);
+  };
+  // pointcloud_roi's 1 cm cloud puts a few dozen points in a cell of veil_radius; a cell holding
+  // hundreds is a raw camera cloud wired here, or one point repeated, and testing every point
+  // against all of them would hold the caller's thread for seconds.
+  constexpr std::size_t kCrowdedCell = 256;
+  const NeighbourGrid grid(all, params_.veil_radius);
+  if (grid.largestCell() <= kCrowdedCell) {
+    for (const auto& p : fruit)
+      if (p.allFinite()) judge(isVeil(grid, p), p);
+    return out;
+  }
+  // Then both clouds are read in cells of half veil_min_gap: the first point of a cell stands for
+  // the cloud there, and a fruit point takes the verdict of its cell's first fruit point.
+  const double inv_cell = 1.0 / std::max(0.5 * params_.veil_min_gap, 0.02 * params_.veil_radius);
+  struct CellHash {
+    std::size_t operator()(const GridCell& c) const { return std::hash<std::uint64_t>()(packCellKey(c)); }
+  };
+  PointList firsts;
+  {
+    std::unordered_set<GridCell, CellHash> seen;
+    for (const auto& q : all)
+      if (q.allFinite() && seen.insert(cellOf(q, inv_cell)).second) firsts.push_back(q);
+  }
+  const NeighbourGrid thinned(firsts, params_.veil_radius);
+  std::unordered_map<GridCell, bool, CellHash> verdicts;
+  for (const auto& p : fruit) {
+    if (!p.allFinite()) continue;
+    const auto found = verdicts.try_emplace(cellOf(p, inv_cell), false);
+    if (found.second) found.first->second = isVeil(thinned, p);
+    judge(found.first->second, p);
   }
   return out;
 }

@@ -19,6 +19,7 @@ NeighbourGrid::NeighbourGrid(const PointList& points, double cell_size) : inv_ce
       sorted_.push_back(points[static_cast<std::size_t>(keyed[end++].second)]);
     }
     const std::pair<int, int> range(static_cast<int>(begin), static_cast<int>(end));
+    largest_cell_ = std::max(largest_cell_, end - begin);
     cells_.emplace(keyed[begin].first, range);
     cell_list_.emplace_back(cellOf(sorted_[begin], inv_cell_), range);
   }
