@@ -56,8 +56,7 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
     RoiView view;
     std::string error;
     if (!toRoiView(cloud, roi_indices, transform, map_frame_, &view, &error, cloud_to_map)) {
-      const std::size_t skipped = ++loader_.plannerViewDrops().views;
-      ROS_WARN("shape estimators: view skipped (%zu so far): %s", skipped, error.c_str());
+      skipView(error);  // throttled: a broken publisher sends every view malformed
       return;
     }
     if (view.bad_indices > 0) {
