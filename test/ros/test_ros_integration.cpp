@@ -875,6 +875,20 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
     EXPECT_NE(std::string(e.what()).find("red_max_hue"), std::string::npos) << e.what();
   }
   bad.deleteParam("shape/red_min_hue");
+  // Valid for the fit (finite, > 0) but beyond the live range rqt_reconfigure offers, where the
+  // live server would clamp it to 10 m without a word.
+  bad.setParam("shape/target_view_max_range", 50.0);
+  try {
+    loader.load(bad, "world");
+    FAIL() << "a live setting outside its live range must throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("target_view_max_range 50"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("-> 10"), std::string::npos) << e.what();
+  }
+  bad.deleteParam("shape/target_view_max_range");
+  bad.setParam("shape/input_outlier_k", 500);  // within both the statistic's bound and the live range
+  EXPECT_NO_THROW(loader.load(bad, "world"));
+  bad.deleteParam("shape/input_outlier_k");
   bad.setParam("shape/fruit_cloud_topic", 3);  // a topic must be a string
   try {
     loader.load(bad, "world");

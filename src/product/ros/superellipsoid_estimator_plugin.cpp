@@ -53,6 +53,17 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     name_ = name;
     map_frame_ = map_frame;
     estimator_ = std::make_unique<host::SuperellipsoidEstimator>(ros_io::readEstimatorParams(nh, ros_io::pluginInputKeys()));
+    // The live server below would clamp a start value into cfg/Superellipsoid.cfg's range with
+    // no more than an INFO line; such a value is refused here, as the other start checks refuse.
+    {
+      const SuperellipsoidConfig start = configOf(estimator_->liveParams());
+      SuperellipsoidConfig clamped = start;
+      clamped.__clamp__();
+      const std::string outside = describeChanges(start, clamped);
+      if (!outside.empty())
+        throw std::runtime_error("live settings outside the ranges of cfg/Superellipsoid.cfg (given -> nearest allowed): " +
+                                 outside);
+    }
     std::string superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic, fruit_cloud_topic;
     std::string camera_topic = "/camera/depth/points", mask_topic;
     int buffer_frames = 16, buffer_mb = 160;
