@@ -21,6 +21,9 @@ class ShapeEstimatorPlugin : public host::ShapeEstimator {
   // Name/value pairs the host publishes as the estimator's diagnostics (map size, memory,
   // dropped data, last update).
   virtual std::vector<std::pair<std::string, std::string>> diagnostics() const { return {}; }
+  // Non-empty while input is being lost (refused, skipped, over the map's budget) since the last
+  // reset: the host's diagnostics turn WARN with it, not only the log.
+  virtual std::string diagnosticsWarning() const { return {}; }
 };
 
 }  // namespace fruit_shape_completion

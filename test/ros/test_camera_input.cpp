@@ -143,6 +143,11 @@ TEST(CameraFrameBuffer, PairsTheNearestFrameWithinTheToleranceAndStaysBounded) {
   EXPECT_EQ(buffer.push(cloudAt(0.5)), ros_io::CameraFrameBuffer::Push::kClockJumpedBack);
   EXPECT_EQ(buffer.size(), 1u);
   EXPECT_NE(buffer.take(ros::Time(0.5), 0.0), nullptr);
+  // A corrupt stamp 136 years on: ros::Time's own difference would throw; it pairs with nothing.
+  sensor_msgs::PointCloud2Ptr far(new sensor_msgs::PointCloud2(*cloudAt(1.0)));
+  far->header.stamp = ros::Time(0xFFFFFFF0u, 0);
+  buffer.push(far);
+  EXPECT_EQ(buffer.take(ros::Time(1.0), 0.05), nullptr);
   // A reset clears the frames and restarts the count of evicted ones.
   EXPECT_EQ(buffer.evicted(), 2u);
   buffer.clear();

@@ -104,7 +104,8 @@ class SuperellipsoidEstimator : public ShapeEstimator {
   bool loadMap(const std::string& path, std::string* error, std::string* warning = nullptr);
   // The accepted fruits of the last update with the views that saw them (fruit_report.h), to a
   // .csv or .json file, atomically.
-  bool exportFruits(const std::string& path, std::string* error, std::string* warning = nullptr) const;
+  bool exportFruits(const std::string& path, std::string* error, std::string* warning = nullptr,
+                    std::size_t* written = nullptr) const;  // written: the fruits in the file
   std::map<int, FruitSightings> sightings() const;
 
   // The live settings, as last set.

@@ -146,11 +146,13 @@ int main(int argc, char** argv) {
         std::size_t bad = 0;
         std::string err;
         if (!ros_io::fromCloud(*msg, &pts, &bad, &err)) {
-          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): %s", ++dropped, err.c_str());
+          const std::size_t n = ++dropped;  // outside the macro: a throttled log evaluates its arguments only when it prints
+          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): %s", n, err.c_str());
           return;
         }
         if (msg->header.frame_id.empty()) {
-          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): the cloud has no frame_id", ++dropped);
+          const std::size_t n = ++dropped;
+          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): the cloud has no frame_id", n);
           return;
         }
         geometry_msgs::TransformStamped to_map, sensor;
@@ -158,7 +160,8 @@ int main(int argc, char** argv) {
           to_map = buffer.lookupTransform(map_frame, msg->header.frame_id, msg->header.stamp, ros::Duration(0.2));
           sensor = buffer.lookupTransform(map_frame, sensor_frame, msg->header.stamp, ros::Duration(0.2));
         } catch (const tf2::TransformException& e) {
-          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): no transform (%s)", ++dropped, e.what());
+          const std::size_t n = ++dropped;
+          ROS_WARN_THROTTLE(5.0, "fruit_cloud skipped (%zu so far): no transform (%s)", n, e.what());
           return;
         }
         const Eigen::Isometry3d T = tf2::transformToEigen(to_map);
@@ -167,7 +170,8 @@ int main(int argc, char** argv) {
         host.onView(host::ViewData{pts, none, tf2::transformToEigen(sensor), msg->header.stamp.toSec(),
                                       host::ViewSource::kFruitCloud});
       } catch (const std::exception& e) {  // std::bad_alloc included: drop this cloud, keep running
-        ROS_WARN_THROTTLE(5.0, "fruit_cloud dropped (%zu so far): %s", ++dropped, e.what());
+        const std::size_t n = ++dropped;
+        ROS_WARN_THROTTLE(5.0, "fruit_cloud dropped (%zu so far): %s", n, e.what());
       }
     });
     ros::AsyncSpinner spinner(2);

@@ -408,9 +408,12 @@ std::map<int, FruitSightings> SuperellipsoidEstimator::sightings() const {
   return sightings_.sightings();
 }
 
-bool SuperellipsoidEstimator::exportFruits(const std::string& path, std::string* error, std::string* warning) const {
+bool SuperellipsoidEstimator::exportFruits(const std::string& path, std::string* error, std::string* warning,
+                                           std::size_t* written) const {
   removeStale(path, warning);
-  return writeFruitReport(path, fruits(), sightings(), error);
+  const std::vector<FruitEstimate> now = fruits();
+  if (written != nullptr) *written = now.size();
+  return writeFruitReport(path, now, sightings(), error);
 }
 
 std::vector<FruitEstimate> SuperellipsoidEstimator::estimates() const {

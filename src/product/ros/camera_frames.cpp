@@ -132,7 +132,8 @@ sensor_msgs::PointCloud2ConstPtr CameraFrameBuffer::takeLocked(const ros::Time& 
   std::size_t best = frames_.size();
   double best_gap = tolerance;
   for (std::size_t i = 0; i < frames_.size(); ++i) {
-    const double gap = std::abs((frames_[i]->header.stamp - stamp).toSec());
+    // In seconds, not as a ros::Duration: that throws for stamps 68 years apart (a corrupt stamp).
+    const double gap = std::abs(frames_[i]->header.stamp.toSec() - stamp.toSec());
     if (gap <= best_gap) {
       best_gap = gap;
       best = i;

@@ -7,6 +7,7 @@
 // frame comes with its sensor pose in the message; any other cloud is taken to the map frame by
 // tf at its stamp, its message's transform read as the sensor's pose in the cloud's frame (as
 // pointcloud_roi writes it; identity for a cloud in the camera frame), or skipped and counted.
+#include <fruit_shape_completion/ros/estimator_params.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 #include <fruit_shape_completion/ros/upstream_messages.h>
 
@@ -14,28 +15,30 @@
 #include <std_srvs/Empty.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <stdexcept>
+
 using namespace fruit_shape_completion;
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "fruit_mapping_node");
   ros::NodeHandle pnh("~");
   std::string map_frame = "world", roi_topic = ros_io::kUpstreamRoiTopic;
-  pnh.param("map_frame", map_frame, map_frame);
-  pnh.param("roi_topic", roi_topic, roi_topic);
+  double tf_wait = 0.2;  // [s] how long a cloud outside the map frame waits for its transform
   std::unique_ptr<ros_io::RoiPlannerShapeEstimators> estimators;
   try {
+    // A value of the wrong type stops the node naming it (pnh.param would take the default).
+    ros_io::readStringParam(pnh, "map_frame", &map_frame);
+    ros_io::readStringParam(pnh, "roi_topic", &roi_topic);
+    ros_io::readNumberParam(pnh, "tf_wait", &tf_wait);
+    if (map_frame.empty()) throw std::runtime_error("~map_frame must name a frame");
+    if (roi_topic.empty()) throw std::runtime_error("~roi_topic must name a topic");
+    if (!(tf_wait >= 0.0 && tf_wait <= 10.0)) throw std::runtime_error("~tf_wait must be in [0, 10] s, not " + std::to_string(tf_wait));
     estimators = std::make_unique<ros_io::RoiPlannerShapeEstimators>(pnh, map_frame);
   } catch (const std::exception& e) {
     ROS_FATAL("%s", e.what());
     return 1;
   }
   if (estimators->empty()) ROS_WARN("no shape estimators configured in %s/shape_estimators", pnh.getNamespace().c_str());
-  double tf_wait = 0.2;  // [s] how long a cloud outside the map frame waits for its transform
-  pnh.param("tf_wait", tf_wait, tf_wait);
-  if (!(tf_wait >= 0.0 && tf_wait <= 10.0)) {
-    ROS_FATAL("~tf_wait must be in [0, 10] s, not %g", tf_wait);
-    return 1;
-  }
   tf2_ros::Buffer tf_buffer;
   tf2_ros::TransformListener tf_listener(tf_buffer);
   ros::Subscriber sub = pnh.subscribe<pointcloud_roi_msgs::PointcloudWithRoi>(

@@ -52,17 +52,21 @@ namespace {
 
 // PCL's conversion trusts the header: a message whose sizes lie is refused here first.
 bool checkXyzCloud(const sensor_msgs::PointCloud2& msg, std::string* error) {
-  int xyz = 0;
+  // Exactly one float32 each: a repeated name or a count of 3 would leave a coordinate PCL
+  // does not match at 0, and the points would be mapped flattened onto a plane.
+  int x = 0, y = 0, z = 0;
   for (const auto& f : msg.fields)
     if (f.name == "x" || f.name == "y" || f.name == "z") {
-      if (f.datatype != sensor_msgs::PointField::FLOAT32 || std::uint64_t(f.offset) + 4 > msg.point_step) {
-        *error = "cloud field '" + f.name + "' is not a float32 inside the point step";
+      if (f.datatype != sensor_msgs::PointField::FLOAT32 || f.count != 1 ||
+          std::uint64_t(f.offset) + 4 > msg.point_step) {
+        *error = "cloud field '" + f.name + "' is not one float32 inside the point step";
         return false;
       }
-      ++xyz;
+      ++(f.name == "x" ? x : f.name == "y" ? y : z);
     }
-  if (xyz != 3) {
-    *error = "cloud has no x, y, z fields";
+  if (x != 1 || y != 1 || z != 1) {
+    *error = "cloud must have one x, one y and one z field (has " + std::to_string(x) + ", " + std::to_string(y) +
+             ", " + std::to_string(z) + ")";
     return false;
   }
   if (msg.is_bigendian) {

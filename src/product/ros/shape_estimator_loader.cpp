@@ -28,6 +28,13 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
       throw std::runtime_error(nh.resolveName("shape_estimators") + "[" + std::to_string(i) +
                                "] must be {name: NAME, type: PACKAGE/CLASS}");
     const std::string name = e["name"], type = e["type"];
+    // Each estimator owns the namespace of its name: two of one name would share parameters,
+    // topics and services (the second's services fail to advertise).
+    if (name.empty()) throw std::runtime_error(nh.resolveName("shape_estimators") + "[" + std::to_string(i) + "] has an empty name");
+    for (int j = 0; j < i; ++j)
+      if (static_cast<std::string>(list[j]["name"]) == name)
+        throw std::runtime_error(nh.resolveName("shape_estimators") + "[" + std::to_string(i) + "] repeats the name '" +
+                                 name + "' of entry " + std::to_string(j) + ": each estimator needs a namespace of its own");
     std::unique_ptr<ShapeEstimatorPlugin> plugin;
     try {
       plugin.reset(loader_.createUnmanagedInstance(type));
@@ -56,7 +63,8 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
       if (views + indices > 0) s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "input skipped (see the log)");
       else s.summary(diagnostic_msgs::DiagnosticStatus::OK, "all input taken");
     });
-  diagnostics_timer_ = nh.createTimer(ros::Duration(1.0), [this](const ros::TimerEvent&) { diagnostics_->update(); });
+  // force_update: update() has a period gate of its own, which a timer tick a little early skips.
+  diagnostics_timer_ = nh.createTimer(ros::Duration(1.0), [this](const ros::TimerEvent&) { diagnostics_->force_update(); });
 }
 
 void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::DiagnosticStatusWrapper& status) const {
@@ -81,7 +89,9 @@ void ShapeEstimatorLoader::diagnose(std::size_t i, diagnostic_updater::Diagnosti
     status.add("insertView latency, last 256 views: median [ms]", host_.insertLatencyMs(0.5));
     status.add("insertView latency, last 256 views: p95 [ms]", host_.insertLatencyMs(0.95));
     status.add("insertView latency, last 256 views: max [ms]", host_.insertLatencyMs(1.0));
+    const std::string losing = plugins_[i]->diagnosticsWarning();
     if (oom > 0) status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; " + host_.lastError(i));
+    else if (!losing.empty()) status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; " + losing);
     else status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
   } catch (const std::exception& e) {
     status.summary(diagnostic_msgs::DiagnosticStatus::WARN, std::string("no diagnostics: ") + e.what());

@@ -138,7 +138,14 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     }
     if (camera_buffer_ && view.source != host::ViewSource::kCameraFrame) {
       std::string why;
-      if (integrateCameraFrame(view.time, &why)) return;
+      bool used = false;
+      try {
+        used = integrateCameraFrame(view.time, &why);
+      } catch (const std::exception& e) {  // a stamp beyond ros::Time's range, say: the view still goes in
+        why = std::string("its frame could not be used: ") + e.what();
+        ++bad_frames_;
+      }
+      if (used) return;
       // The view's own cloud (pointcloud_roi's 1 cm voxels) is the fallback: less detail, but
       // the view is not lost.
       const std::size_t n = ++fallback_views_;
@@ -251,6 +258,21 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
             {"input: dropped as outliers", std::to_string(s.input.outlier_points)},
             {"seconds since the last update", since < 0 ? "never" : std::to_string(since)}};
   }
+  std::string diagnosticsWarning() const override {
+    const host::EstimatorStatus s = status();
+    std::string out;
+    const auto add = [&](std::size_t n, const char* what) {
+      if (n > 0) out += (out.empty() ? "" : ", ") + std::to_string(n) + " " + what;
+    };
+    add(s.views_refused, "views refused");
+    add(s.rays_over_budget, "rays over the memory budget");
+    add(fruit_clouds_skipped_, "fruit clouds skipped");
+    add(fallback_views_, "views without their camera frame (their 1 cm cloud went in; camera_cloud_topic \"\" if meant)");
+    add(not_organized_, "camera clouds not organized");
+    add(too_large_, "camera frames too large");
+    add(masks_refused_, "camera masks refused");
+    return out.empty() ? out : out + " since the last reset (see the counters)";
+  }
 
  private:
   void integrate(const host::ViewData& view) {
@@ -275,8 +297,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       std::size_t non_finite = 0;
       std::string error;
       if (!ros_io::fromCloud(*msg, &points, &non_finite, &error)) {
-        ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped (%zu so far): %s", name_.c_str(), ++fruit_clouds_skipped_,
-                          error.c_str());
+        // Counted outside the macro: a throttled log evaluates its arguments only when it prints.
+        const std::size_t skipped = ++fruit_clouds_skipped_;
+        ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped (%zu so far): %s", name_.c_str(), skipped, error.c_str());
         return;
       }
       if (non_finite > 0) {
@@ -285,10 +308,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
                           so_far);
       }
       if (msg->header.frame_id.empty() || msg->header.frame_id == map_frame_) {
+        const std::size_t skipped = ++fruit_clouds_skipped_;
         ROS_WARN_THROTTLE(10.0,
                           "%s: fruit cloud skipped (%zu so far): it must be in the camera frame (the sensor origin), "
                           "not '%s'",
-                          name_.c_str(), ++fruit_clouds_skipped_, msg->header.frame_id.c_str());
+                          name_.c_str(), skipped, msg->header.frame_id.c_str());
         return;
       }
       const Eigen::Isometry3d sensor_to_map = tf2::transformToEigen(
@@ -297,8 +321,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       integrate({points, points, sensor_to_map, msg->header.stamp.toSec(), host::ViewSource::kFruitCloud});
       own_updates_->request();
     } catch (const tf2::TransformException& e) {
-      ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped (%zu so far): no transform to %s (%s)", name_.c_str(),
-                        ++fruit_clouds_skipped_, map_frame_.c_str(), e.what());
+      const std::size_t skipped = ++fruit_clouds_skipped_;
+      ROS_WARN_THROTTLE(10.0, "%s: fruit cloud skipped (%zu so far): no transform to %s (%s)", name_.c_str(), skipped,
+                        map_frame_.c_str(), e.what());
     } catch (const std::exception& e) {  // std::bad_alloc among them: drop this cloud, keep running
       ROS_ERROR("%s: fruit cloud dropped (%zu so far): %s", name_.c_str(), ++fruit_clouds_skipped_, e.what());
     }
@@ -348,8 +373,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   void onMask(const sensor_msgs::ImageConstPtr& msg) {
     ++masks_received_;
     if (msg->encoding != "mono8" && msg->encoding != "8UC1") {
-      ROS_WARN_THROTTLE(10.0, "%s: camera mask ignored (%zu so far): encoding '%s', not mono8", name_.c_str(),
-                        std::size_t(++masks_refused_), msg->encoding.c_str());
+      const std::size_t refused = ++masks_refused_;
+      ROS_WARN_THROTTLE(10.0, "%s: camera mask ignored (%zu so far): encoding '%s', not mono8", name_.c_str(), refused,
+                        msg->encoding.c_str());
       return;
     }
     std::lock_guard<std::mutex> lock(masks_mutex_);
@@ -363,17 +389,19 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     {
       std::lock_guard<std::mutex> lock(masks_mutex_);
       for (const auto& m : masks_)
-        if (std::abs((m->header.stamp - stamp).toSec()) < 1e-3) mask = m;
+        if (std::abs(m->header.stamp.toSec() - stamp.toSec()) < 1e-3) mask = m;  // ros::Time's difference throws past 68 years
     }
     if (!mask) {
+      const std::size_t without = ++frames_without_mask_;
       ROS_WARN_THROTTLE(10.0, "%s: no camera mask with the frame's stamp: the red test decides (%zu frames so far)",
-                        name_.c_str(), std::size_t(++frames_without_mask_));
+                        name_.c_str(), without);
       return false;
     }
     if (static_cast<int>(mask->width) != width || static_cast<int>(mask->height) != height ||
         mask->step < mask->width || mask->data.size() < std::size_t(mask->step) * mask->height) {
+      const std::size_t refused = ++masks_refused_;
       ROS_WARN_THROTTLE(10.0, "%s: camera mask of %ux%u refused for a %dx%d frame (%zu so far): the red test decides",
-                        name_.c_str(), mask->width, mask->height, width, height, std::size_t(++masks_refused_));
+                        name_.c_str(), mask->width, mask->height, width, height, refused);
       return false;
     }
     out->resize(static_cast<std::size_t>(width) * height);
@@ -386,8 +414,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     try {
       ++frames_received_;
       if (msg->height <= 1) {
+        const std::size_t ignored = ++not_organized_;
         ROS_WARN_THROTTLE(10.0, "%s: camera cloud ignored (%zu so far): not organized (height %u); camera_cloud_topic "
-                          "must be the camera driver's cloud", name_.c_str(), std::size_t(++not_organized_), msg->height);
+                          "must be the camera driver's cloud", name_.c_str(), ignored, msg->height);
         return;
       }
       switch (camera_buffer_->push(msg)) {
@@ -396,10 +425,12 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
           ROS_WARN("%s: camera stamps went back in time (a bag looping?): buffered frames dropped, the map kept",
                    name_.c_str());
           break;
-        case ros_io::CameraFrameBuffer::Push::kTooLarge:
+        case ros_io::CameraFrameBuffer::Push::kTooLarge: {
+          const std::size_t ignored = ++too_large_;
           ROS_WARN_THROTTLE(10.0, "%s: camera cloud of %zu bytes exceeds camera_buffer_mb; ignored (%zu so far)",
-                            name_.c_str(), msg->data.size(), std::size_t(++too_large_));
+                            name_.c_str(), msg->data.size(), ignored);
           return;
+        }
         case ros_io::CameraFrameBuffer::Push::kStored:
           break;
       }
@@ -466,10 +497,10 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   }
   bool exportFruits(FilePath::Request& req, FilePath::Response& res) {
     std::string error, warning;
-    res.success = estimator_->exportFruits(req.file_path, &error, &warning);
+    std::size_t written = 0;
+    res.success = estimator_->exportFruits(req.file_path, &error, &warning, &written);
     if (!warning.empty()) ROS_WARN("%s: %s", name_.c_str(), warning.c_str());
-    res.message = res.success ? "exported " + std::to_string(estimator_->fruits().size()) + " fruits to " + req.file_path
-                              : error;
+    res.message = res.success ? "exported " + std::to_string(written) + " fruits to " + req.file_path : error;
     if (!res.success) ROS_ERROR("%s: export_fruits: %s", name_.c_str(), error.c_str());
     return true;
   }
@@ -487,7 +518,11 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       return;
     }
     const std::string changed = describeChanges(configOf(before), config);
-    if (!changed.empty()) ROS_INFO("%s: reconfigured (from the next view or fit): %s", name_.c_str(), changed.c_str());
+    if (changed.empty()) return;
+    ROS_INFO("%s: reconfigured (from the next view or fit): %s", name_.c_str(), changed.c_str());
+    // A planner standing still sends no view: the own worker's update hands the targets over
+    // under the new settings now.
+    if (host_enabled_) own_updates_->request();
   }
   static SuperellipsoidConfig configOf(host::EstimatorLiveParams p) {
     SuperellipsoidConfig c = SuperellipsoidConfig::__getDefault__();

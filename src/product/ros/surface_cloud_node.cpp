@@ -13,15 +13,21 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <stdexcept>
+
 using namespace fruit_shape_completion;
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "surface_cloud_node");
   ros::NodeHandle pnh("~");
-  std::string map_frame = "world";
-  pnh.param("map_frame", map_frame, map_frame);
+  std::string map_frame = "world", superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic;
   std::unique_ptr<FruitShapePipeline> pipeline;
   try {
+    // A value of the wrong type stops the node naming it (pnh.param would take the default).
+    ros_io::readStringParam(pnh, "map_frame", &map_frame);
+    ros_io::readStringParam(pnh, "superellipsoids_topic", &superellipsoids_topic);
+    if (map_frame.empty()) throw std::runtime_error("~map_frame must name a frame");
+    if (superellipsoids_topic.empty()) throw std::runtime_error("~superellipsoids_topic must name a topic");
     // Fit parameters as for the plugin, from ~superellipsoid/ (config/shape_estimators.yaml); the
     // plugin's input topics there do not apply to a node fed surface clouds.
     pipeline = std::make_unique<FruitShapePipeline>(
@@ -30,8 +36,6 @@ int main(int argc, char** argv) {
     ROS_FATAL("%s", e.what());
     return 1;
   }
-  std::string superellipsoids_topic = ros_io::kUpstreamSuperellipsoidsTopic;
-  pnh.param("superellipsoids_topic", superellipsoids_topic, superellipsoids_topic);
   ros_io::FruitPublisher publisher(pnh, map_frame, superellipsoids_topic);
   tf2_ros::Buffer buffer;
   tf2_ros::TransformListener listener(buffer);
