@@ -254,10 +254,26 @@ TEST(RoiPlannerShapeEstimators, PointcloudRoiViewsGiveTheFruitAndTargetsOnItsUns
   EXPECT_TRUE(waitFor([&] { return !views_value.empty() && !indices_value.empty(); }, 10.0));
   EXPECT_EQ(views_value, "1");
   EXPECT_EQ(indices_value, "2");
+  // The patched planner reads resets() when its tree takes a view; a reset between that and the
+  // hand-over (its callback and its planning thread race) leaves the view out of the new map.
+  const std::uint64_t ticket = estimators.resets();
   estimators.reset();
+  EXPECT_EQ(estimators.resets(), ticket + 1);
   EXPECT_EQ(estimators.viewsSkipped(), 0u);
   EXPECT_TRUE(estimators.host().fruits(0).empty());
   EXPECT_TRUE(estimators.extraTargets().empty());
+  const auto old_view = roiCloud(s.scene, 1, s.cameras[0]);
+  estimators.insertView(old_view.cloud, old_view.roi_indices, old_view.transform, 50.0, nullptr, &ticket);
+  EXPECT_EQ(estimators.viewsFromBeforeAReset(), 1u);
+  EXPECT_EQ(estimators.viewsSkipped(), 0u);  // expected around a reset: not a loss
+  ASSERT_TRUE(estimators.waitForFits(10.0));
+  const auto& plugin = dynamic_cast<const ShapeEstimatorPlugin&>(estimators.host().estimator(0));
+  EXPECT_EQ(diagnosticCount(plugin, "views"), 0u) << "a view from before the reset reached the new map";
+  // With the current count it goes in.
+  const std::uint64_t now = estimators.resets();
+  estimators.insertView(old_view.cloud, old_view.roi_indices, old_view.transform, 51.0, nullptr, &now);
+  EXPECT_EQ(estimators.viewsFromBeforeAReset(), 1u);
+  EXPECT_EQ(diagnosticCount(plugin, "views"), 1u);
 }
 
 // fruit_mapping_node's input and output as upstream names them: PointcloudWithRoi in, the

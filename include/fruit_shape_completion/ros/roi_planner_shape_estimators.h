@@ -14,6 +14,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <mutex>
+#include <shared_mutex>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -82,9 +83,11 @@ class RoiPlannerShapeEstimators {
   // One view (read as toRoiView reads it). Returns once every estimator has it in its map; the
   // fits run on the estimators' own threads, views arriving meanwhile coalesce into the next
   // fit. Never throws: a malformed cloud or bad indices are logged, counted and skipped.
+  // `resets_seen`: resets() read when the host's own map took the view, under the lock its reset
+  // holds too; a reset since then makes the view one of the old map's, not mapped (counted).
   void insertView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int32_t>& roi_indices,
                   const geometry_msgs::Transform& transform, double time = 0.0,
-                  const geometry_msgs::Transform* cloud_to_map = nullptr);
+                  const geometry_msgs::Transform* cloud_to_map = nullptr, const std::uint64_t* resets_seen = nullptr);
   // A view its host could not hand over (no transform to the map frame, say): counted and
   // warned as the views insertView skips.
   void skipView(const std::string& why);
@@ -99,12 +102,17 @@ class RoiPlannerShapeEstimators {
   // Until no fit is pending or running (false after `seconds`): for tools and tests, which
   // want the fit of the view they just gave; a planner does not wait.
   bool waitForFits(double seconds) const { return loader_.host().waitForUpdates(seconds); }
+  // Clears every estimator's map. Waits for insertView calls running (a view is in the old map
+  // or the new one, never half); call it where the host clears its own map, under the same lock.
   void reset();
+  // Resets so far: a view's ticket (insertView's resets_seen).
+  std::uint64_t resets() const { return resets_.load(); }
 
   host::ShapeEstimatorHost& host() { return loader_.host(); }
   // Also in /diagnostics ("shape estimators: PointcloudWithRoi input"); restart with reset().
   std::size_t viewsSkipped() const { return loader_.plannerViewDrops().views; }
   std::size_t indicesSkipped() const { return loader_.plannerViewDrops().indices; }  // out of range or non-finite points
+  std::size_t viewsFromBeforeAReset() const { return loader_.plannerViewDrops().before_reset; }
 
  private:
   ShapeEstimatorLoader loader_;
@@ -113,6 +121,8 @@ class RoiPlannerShapeEstimators {
   std::mutex calls_mutex_;
   std::condition_variable calls_done_;
   int calls_ = 0;  // insertView calls running; guarded by calls_mutex_
+  std::shared_mutex reset_mutex_;  // insertView shared, reset() exclusive
+  std::atomic<std::uint64_t> resets_{0};
 };
 
 }  // namespace ros_io

@@ -24,6 +24,7 @@ namespace ros_io {
 struct PlannerViewDrops {
   std::atomic<std::size_t> views{0};    // malformed PointcloudWithRoi, or dropped (out of memory)
   std::atomic<std::size_t> indices{0};  // ROI indices out of range or on non-finite points
+  std::atomic<std::size_t> before_reset{0};  // views the host's map took before a reset came (not mapped)
 };
 
 class ShapeEstimatorLoader {

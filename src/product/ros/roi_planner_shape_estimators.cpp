@@ -38,7 +38,8 @@ bool toRoiView(const sensor_msgs::PointCloud2& cloud, const std::vector<std::int
 void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud,
                                            const std::vector<std::int32_t>& roi_indices,
                                            const geometry_msgs::Transform& transform, double time,
-                                           const geometry_msgs::Transform* cloud_to_map) {
+                                           const geometry_msgs::Transform* cloud_to_map,
+                                           const std::uint64_t* resets_seen) {
   if (empty()) return;
   {
     std::lock_guard<std::mutex> lock(calls_mutex_);
@@ -53,6 +54,12 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
     }
   } done{this};
   try {
+    std::shared_lock<std::shared_mutex> no_reset(reset_mutex_);
+    if (resets_seen != nullptr && *resets_seen != resets_.load()) {
+      const std::size_t n = ++loader_.plannerViewDrops().before_reset;
+      ROS_INFO_THROTTLE(10.0, "shape estimators: a view the planner mapped before its reset is not mapped (%zu so far)", n);
+      return;
+    }
     RoiView view;
     std::string error;
     if (!toRoiView(cloud, roi_indices, transform, map_frame_, &view, &error, cloud_to_map)) {
@@ -121,8 +128,11 @@ ShapeTargetRound RoiPlannerShapeEstimators::targetRound() const {
 }
 
 void RoiPlannerShapeEstimators::reset() {
+  std::unique_lock<std::shared_mutex> no_views(reset_mutex_);
+  ++resets_;
   loader_.plannerViewDrops().views = 0;
   loader_.plannerViewDrops().indices = 0;
+  loader_.plannerViewDrops().before_reset = 0;
   loader_.host().reset();
 }
 

@@ -60,6 +60,8 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
       const std::size_t views = planner_drops_.views, indices = planner_drops_.indices;
       s.add("views skipped (malformed, no transform, or dropped)", views);
       s.add("ROI indices skipped (out of range, non-finite points)", indices);
+      // Expected around a reset, not a loss: the host's map was cleared after it took them.
+      s.add("views from before the last reset (not mapped)", std::size_t(planner_drops_.before_reset));
       if (views + indices > 0) s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "input skipped (see the log)");
       else s.summary(diagnostic_msgs::DiagnosticStatus::OK, "all input taken");
     });
