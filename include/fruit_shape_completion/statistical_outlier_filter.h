@@ -17,6 +17,7 @@ struct OutlierFilterParams {
   int k = 10;
   double std_mul = 2.0;
   double search_radius = 0.01;  // [m]
+  static constexpr double kMaxSearchRadius = 0.05;
   void validate() const;  // throws std::invalid_argument
 };
 

@@ -128,6 +128,7 @@ class TsdfMap {
   }
   std::size_t observedVoxelCount() const;
   std::size_t memoryBytes() const;
+  // Empty, with the parameters it was constructed with (a loaded file's block side goes).
   void clear();
 
   // Differs between maps and changes when the map is cleared or loaded: block revisions are
@@ -173,6 +174,7 @@ class TsdfMap {
   bool blockInRange(const VoxelIndex& block_origin) const;
 
   TsdfMapParams params_;
+  TsdfMapParams configured_;  // as constructed; load() may take a file's, clear() goes back
   std::size_t max_blocks_;
   std::map<std::uint64_t, std::unique_ptr<TsdfBlock>> blocks_;
   // Rays touch the same block many times in a row: the last block updated is kept.

@@ -85,6 +85,11 @@ TEST(StatisticalOutlierFilter, FlagsStraysAsTheDefinitionSays) {
   EXPECT_THROW(params.validate(), std::invalid_argument);
   params.k = 1001;  // k distances kept per point: bounded
   EXPECT_THROW(params.validate(), std::invalid_argument);
+  params.k = 10;
+  params.search_radius = 0.06;  // pairs grow with the radius squared, on every view: bounded
+  EXPECT_THROW(params.validate(), std::invalid_argument);
+  params.search_radius = 0.05;
+  EXPECT_NO_THROW(params.validate());
 }
 
 TEST(StatisticalOutlierFilter, RepeatedPointsCountAsTheirOwnNearestNeighbours) {

@@ -104,6 +104,13 @@ TEST(FruitReport, CsvAndJsonHoldOneRowPerAcceptedFruitThatReadsBack) {
   EXPECT_NEAR(j["fruits"][1]["volume_m3"].get<double>(), fruits[2].volume, 1e-12);
   EXPECT_TRUE(j["fruits"][1]["first_seen"].is_null());
   EXPECT_NEAR(j["fruits"][1]["center_r90_m"].get<double>(), 0.007, 1e-12);
+  // A robot's stamps (seconds since 1970, 1.7e9) keep their milliseconds and more, not 10 s.
+  std::map<int, FruitSightings> stamped;
+  stamped[3] = {2, 1732550404.125, 1732550419.875};
+  ASSERT_TRUE(writeFruitReport(json, fruits, stamped, &error)) << error;
+  const auto js = nlohmann::json::parse(slurp(json));
+  EXPECT_NEAR(js["fruits"][0]["first_seen"].get<double>(), 1732550404.125, 1e-6);
+  EXPECT_NEAR(js["fruits"][0]["last_seen"].get<double>(), 1732550419.875, 1e-6);
 
   EXPECT_FALSE(writeFruitReport((dir.path / "fruits.txt").string(), fruits, seen, &error));
   EXPECT_NE(error.find(".csv or .json"), std::string::npos) << error;

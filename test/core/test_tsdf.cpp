@@ -328,6 +328,13 @@ TEST(TsdfMap, LoadingAnotherBlockSideKeepsTheMemoryBudget) {
   EXPECT_TRUE(map.setVoxel(VoxelIndex(1000, 2, 3), v));  // a second block: the budget's last
   EXPECT_TRUE(map.atBudget());
   EXPECT_FALSE(map.setVoxel(VoxelIndex(2000, 2, 3), v));
+  // A reset's empty map is the configured one again: 16-voxel blocks, over a hundred of them.
+  map.clear();
+  EXPECT_EQ(map.voxelsPerSide(), 16);
+  EXPECT_EQ(map.params().maxBlocks(), small_blocks.maxBlocks());
+  EXPECT_GT(map.params().maxBlocks(), 100u);
+  EXPECT_TRUE(map.setVoxel(VoxelIndex(1000, 2, 3), v));
+  EXPECT_TRUE(map.setVoxel(VoxelIndex(2000, 2, 3), v));
   EXPECT_EQ(map.blockCount(), 2u);
   EXPECT_LE(map.memoryBytes(), static_cast<std::size_t>(5.0 * 1048576.0));
 }

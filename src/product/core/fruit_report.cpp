@@ -14,11 +14,12 @@ bool endsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-// Round-trip precision; NaN (never seen) as an empty CSV cell or JSON null.
+// Round-trip precision (17 digits: a stamp of 1.7e9 s keeps its nanoseconds' worth, not 10 s);
+// NaN (never seen) as an empty CSV cell or JSON null.
 std::string number(double v, bool json) {
   if (!std::isfinite(v)) return json ? "null" : "";
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.9g", v);
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
   return buf;
 }
 

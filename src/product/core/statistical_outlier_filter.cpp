@@ -13,8 +13,10 @@ void OutlierFilterParams::validate() const {
   if (k < 1 || k > 1000) throw std::invalid_argument("outlier filter k must be in [1, 1000]");
   if (!(std_mul > 0.0) || !std::isfinite(std_mul))
     throw std::invalid_argument("outlier filter std_mul must be a finite value > 0");
-  if (!(search_radius > 0.0) || !std::isfinite(search_radius))
-    throw std::invalid_argument("outlier filter search_radius must be a finite value > 0");
+  // Bounded: its neighbour tests grow with the square of the radius over the voxel or pixel
+  // spacing, on every view.
+  if (!(search_radius > 0.0 && search_radius <= kMaxSearchRadius))
+    throw std::invalid_argument("outlier filter search_radius must be in (0, 0.05] m");
 }
 
 NearestDistances::NearestDistances(std::size_t points, const OutlierFilterParams& params)

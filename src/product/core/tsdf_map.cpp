@@ -56,7 +56,7 @@ std::uint64_t nextEpoch() {
 }
 }  // namespace
 
-TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params), epoch_(nextEpoch()) {
+TsdfMap::TsdfMap(const TsdfMapParams& params) : params_(params), configured_(params), epoch_(nextEpoch()) {
   params_.validate();
   max_blocks_ = params_.maxBlocks();
 }
@@ -176,6 +176,9 @@ std::size_t TsdfMap::memoryBytes() const {
 void TsdfMap::clear() {
   resetLog();
   blocks_.clear();
+  // A loaded file's block side and budget belonged to that map: an empty one starts as configured.
+  params_ = configured_;
+  max_blocks_ = params_.maxBlocks();
   cached_block_ = nullptr;
   epoch_ = nextEpoch();
 }

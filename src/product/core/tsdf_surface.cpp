@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <sstream>
 
 namespace fruit_shape_completion {
@@ -237,6 +238,7 @@ TriangleMesh extractSurfaceMesh(const TsdfMap& map, double min_weight) {
 bool TriangleMesh::writePly(const std::string& path, std::string* error) const {
   // Written whole and renamed into place: a kill or a full disk leaves the previous file.
   std::ostringstream out;
+  out << std::setprecision(9);  // a float's digits: a map far from its frame's origin keeps its millimetres
   out << "ply\nformat ascii 1.0\nelement vertex " << vertices.size()
       << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << triangles.size()
       << "\nproperty list uchar int vertex_indices\nend_header\n";
