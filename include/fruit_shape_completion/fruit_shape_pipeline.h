@@ -61,6 +61,7 @@ struct PipelineStats {
   int clusters = 0;  // examined this update (around the changed blocks when only those were re-clustered)
   ClustersLeftOut left_out;  // formed this update, not fitted for their size (outside clustering's min..max_size)
   bool local = false;  // only the clusters around the changed blocks were formed again
+  int cluster_passes = 0;  // local: clusterings of the gathered blocks while the region grew
   int fitted = 0;  // fits run this update (others reused)
   int kept = 0;    // changed clusters whose previous fit still explained them (not refitted)
   int splits = 0;  // clusters split into several fruits

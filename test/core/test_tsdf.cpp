@@ -13,7 +13,9 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <random>
+#include <tuple>
 #include <unordered_set>
 #include <thread>
 #include <sys/wait.h>
@@ -798,4 +800,35 @@ TEST(TsdfMap, ClusteringOnlyAroundChangedBlocksFindsWhatAWholeUpdateFinds) {
   for (const auto& f : whole.fruits()) found += f.accepted;
   EXPECT_GE(found, 12);
   EXPECT_LT(2 * local_clusters_late, whole_clusters_late);
+}
+
+// A component no fruit tracks (too large to fit: fruits and leaves grown into one) grows the
+// local region one ring of blocks per pass; a long one is gathered whole after a few passes
+// instead of costing a clustering per ring on every view, and is found whole either way.
+TEST(FruitShapePipeline, ALongUntrackedComponentIsGatheredWholeAfterAFewPasses) {
+  const double block = 0.064;
+  std::map<std::tuple<std::int64_t, std::int64_t, std::int64_t>, PointList> by_block;
+  int n = 0;
+  for (double x = 0.0; x < 1.5; x += 0.003)  // a tube 1.5 m long, 3 cm across: 15 500 points
+    for (int k = 0; k < 31; ++k, ++n) {
+      const double a = 2.0 * M_PI * k / 31.0;
+      const Eigen::Vector3d p(x, 0.3 + 0.015 * std::cos(a), 0.5 + 0.015 * std::sin(a));
+      const GridCell c = cellOf(p, 1.0 / block);
+      by_block[{c.x(), c.y(), c.z()}].push_back(p);
+    }
+  SurfaceBlocks blocks;
+  blocks.block_size = block;
+  for (auto& [key, pts] : by_block)
+    blocks.blocks.push_back({GridCell(std::get<0>(key), std::get<1>(key), std::get<2>(key)), SharedPoints(pts)});
+  blocks.all_changed = true;
+  FruitShapePipeline pipeline;
+  pipeline.update(blocks);
+  ASSERT_EQ(pipeline.lastStats().left_out.oversized, 1) << n << " points";
+  // A view changes one block at the tube's end.
+  blocks.all_changed = false;
+  blocks.changed = {blocks.blocks.front().block};
+  pipeline.update(blocks);
+  EXPECT_TRUE(pipeline.lastStats().local);
+  EXPECT_EQ(pipeline.lastStats().left_out.oversized, 1);  // found whole, not cut at the region's edge
+  EXPECT_LE(pipeline.lastStats().cluster_passes, 5);       // 23 blocks long: a pass per ring would be 12 or more
 }

@@ -62,7 +62,14 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
   std::vector<std::vector<int>> found, components;
   std::vector<std::size_t> gathered, gathered_before;  // the blocks (indices) whose points are in sub
   int skipped = 0;  // non-finite points of the last gathering
+  // A component no fruit tracks (one too large or too small to fit: fruits and leaves grown into
+  // one, say) grows the region by one ring of blocks per pass, each pass clustering all that was
+  // gathered: a long one would cost passes times points on every view. After a few passes every
+  // block is gathered instead, and the next pass is the last.
+  constexpr int kPassesBeforeAll = 4;
   for (;;) {
+    if (stats_.cluster_passes == kPassesBeforeAll)
+      for (const auto& b : blocks.blocks) grow(b.block);
     if (touchTracks()) continue;
     const std::unordered_set<std::uint64_t> near = nearGrown();
     gathered.clear();
@@ -86,7 +93,10 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
         in_grown.push_back(g);
       }
     }
-    if (!same_points) components = euclideanClusters(*sub, every);
+    if (!same_points) {
+      components = euclideanClusters(*sub, every);
+      ++stats_.cluster_passes;
+    }
     gathered_before.swap(gathered);
     found.clear();
     bool grew = false;
