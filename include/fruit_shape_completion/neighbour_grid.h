@@ -76,6 +76,11 @@ class NeighbourGrid {
   std::size_t size() const { return sorted_.size(); }
   // The most points any one cell holds.
   std::size_t largestCell() const { return largest_cell_; }
+  // How many points share a point's cell, on average over the points (itself included): a
+  // query's candidates per cell it reads.
+  double meanCellmates() const {
+    return sorted_.empty() ? 0.0 : cell_mates_ / static_cast<double>(sorted_.size());
+  }
   const Point& pointAt(std::size_t position) const { return sorted_[position]; }
   int indexAt(std::size_t position) const { return order_[position]; }
 
@@ -131,6 +136,7 @@ class NeighbourGrid {
 
   double inv_cell_;
   std::size_t largest_cell_ = 0;
+  double cell_mates_ = 0.0;  // sum over cells of their points squared
   std::vector<int> order_;  // point indices grouped by cell
   PointList sorted_;        // the points in that order
   std::unordered_map<std::uint64_t, std::pair<int, int>> cells_;  // cell key -> range of order_

@@ -248,7 +248,7 @@ BENCHMARK(BM_PointcloudRoiChainPcl)->Unit(benchmark::kMillisecond)->Iterations(1
 
 // The stage's neighbour tests on hostile clouds, as a planner callback would run them. Arg 0:
 // pointcloud_roi's ROI cloud and its fruit points are 100 k identical points (a stalled driver);
-// Arg 1: a raw camera cloud wired where the 1 cm ROI cloud belongs (300 k points 0.2 mm apart
+// Arg 1: a raw camera cloud wired where the 1 cm ROI cloud belongs (196 k points 0.2 mm apart
 // on a 5 cm fruit's front, all of them fruit). The veil test visits every point within 2.5 cm.
 static void BM_RoiCloudHostile(benchmark::State& state) {
   PointList all;

@@ -816,6 +816,13 @@ TEST(FruitShapePipeline, ALongUntrackedComponentIsGatheredWholeAfterAFewPasses) 
       const GridCell c = cellOf(p, 1.0 / block);
       by_block[{c.x(), c.y(), c.z()}].push_back(p);
     }
+  // Far from it, a row of other surface (blocks it never touches) that a local update leaves alone.
+  for (double x = 0.0; x < 3.0; x += 0.2)
+    for (int k = 0; k < 50; ++k) {
+      const Eigen::Vector3d p(x + 0.001 * k, 1.0, 0.5 + 0.0005 * k);
+      const GridCell c = cellOf(p, 1.0 / block);
+      by_block[{c.x(), c.y(), c.z()}].push_back(p);
+    }
   SurfaceBlocks blocks;
   blocks.block_size = block;
   for (auto& [key, pts] : by_block)
@@ -824,6 +831,7 @@ TEST(FruitShapePipeline, ALongUntrackedComponentIsGatheredWholeAfterAFewPasses) 
   FruitShapePipeline pipeline;
   pipeline.update(blocks);
   ASSERT_EQ(pipeline.lastStats().left_out.oversized, 1) << n << " points";
+  ASSERT_EQ(pipeline.lastStats().left_out.undersized, 15);  // the far row: 50-point specks
   // A view changes one block at the tube's end.
   blocks.all_changed = false;
   blocks.changed = {blocks.blocks.front().block};
@@ -831,4 +839,5 @@ TEST(FruitShapePipeline, ALongUntrackedComponentIsGatheredWholeAfterAFewPasses) 
   EXPECT_TRUE(pipeline.lastStats().local);
   EXPECT_EQ(pipeline.lastStats().left_out.oversized, 1);  // found whole, not cut at the region's edge
   EXPECT_LE(pipeline.lastStats().cluster_passes, 5);       // 23 blocks long: a pass per ring would be 12 or more
+  EXPECT_EQ(pipeline.lastStats().left_out.undersized, 0);  // the far row's specks were not gathered
 }

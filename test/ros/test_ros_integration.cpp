@@ -733,6 +733,13 @@ TEST(Plugin, LiveSettingsThroughDynamicReconfigureAndAFruitExport) {
   bool on = true;
   EXPECT_TRUE(nh.getParam("shape_targets", on));
   EXPECT_FALSE(on);
+  // Back on, and no view comes (the planner stands still): the change asks for an update itself.
+  dynamic_reconfigure::Reconfigure back;
+  targets.value = true;
+  back.request.config.bools.push_back(targets);
+  reconfigure(back);
+  EXPECT_TRUE(waitFor([&] { return !plugin->extraTargets().empty(); }, 10.0))
+      << "targets switched back on came only with the next view";
 
   // A red threshold: before, a view masks the pepper's pixels; with saturation >= 255 asked
   // for, the next view masks none.

@@ -102,8 +102,10 @@ class RoiPlannerShapeEstimators {
   // Until no fit is pending or running (false after `seconds`): for tools and tests, which
   // want the fit of the view they just gave; a planner does not wait.
   bool waitForFits(double seconds) const { return loader_.host().waitForUpdates(seconds); }
-  // Clears every estimator's map. Waits for insertView calls running (a view is in the old map
-  // or the new one, never half); call it where the host clears its own map, under the same lock.
+  // Clears every estimator's map. Waits up to 2 s for insertView calls running (a view is in the
+  // old map or the new one, never half; longer only if a tf wait hangs on a paused /clock, and
+  // the host's lock must not be held that long); call it where the host clears its own map,
+  // under the same lock.
   void reset();
   // Resets so far: a view's ticket (insertView's resets_seen).
   std::uint64_t resets() const { return resets_.load(); }
@@ -121,7 +123,7 @@ class RoiPlannerShapeEstimators {
   std::mutex calls_mutex_;
   std::condition_variable calls_done_;
   int calls_ = 0;  // insertView calls running; guarded by calls_mutex_
-  std::shared_mutex reset_mutex_;  // insertView shared, reset() exclusive
+  std::shared_timed_mutex reset_mutex_;  // insertView shared, reset() exclusive
   std::atomic<std::uint64_t> resets_{0};
 };
 

@@ -137,12 +137,12 @@ FruitInput FruitInputStage::processRoiCloud(const PointList& all, const PointLis
     if (veil) ++out.veil;
     else out.fruit.push_back(p);
   };
-  // pointcloud_roi's 1 cm cloud puts a few dozen points in a cell of veil_radius; a cell holding
-  // hundreds is a raw camera cloud wired here, or one point repeated, and testing every point
-  // against all of them would hold the caller's thread for seconds.
-  constexpr std::size_t kCrowdedCell = 256;
+  // A fruit point reads the 27 cells of veil_radius around it. pointcloud_roi's 1 cm cloud puts
+  // about ten points in a cell, so a view costs about a million tests; a raw camera cloud wired
+  // here (hundreds per cell), or one point repeated, would cost billions on the caller's thread.
+  constexpr double kMaxTests = 2e7;
   const NeighbourGrid grid(all, params_.veil_radius);
-  if (grid.largestCell() <= kCrowdedCell) {
+  if (static_cast<double>(fruit.size()) * 27.0 * grid.meanCellmates() <= kMaxTests) {
     for (const auto& p : fruit)
       if (p.allFinite()) judge(isVeil(grid, p), p);
     return out;

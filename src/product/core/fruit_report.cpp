@@ -2,6 +2,7 @@
 
 #include <fruit_shape_completion/atomic_file.h>
 
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -14,13 +15,14 @@ bool endsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-// Round-trip precision (17 digits: a stamp of 1.7e9 s keeps its nanoseconds' worth, not 10 s);
+// The shortest text that reads back as the same double (a stamp of 1.7e9 s keeps its
+// fraction; a fixed digit count either rounds it or prints 0.03 as 0.029999999999999999);
 // NaN (never seen) as an empty CSV cell or JSON null.
 std::string number(double v, bool json) {
   if (!std::isfinite(v)) return json ? "null" : "";
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
+  char buf[64];
+  const auto end = std::to_chars(buf, buf + sizeof(buf), v).ptr;
+  return std::string(buf, end);
 }
 
 }  // namespace

@@ -64,12 +64,28 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
   int skipped = 0;  // non-finite points of the last gathering
   // A component no fruit tracks (one too large or too small to fit: fruits and leaves grown into
   // one, say) grows the region by one ring of blocks per pass, each pass clustering all that was
-  // gathered: a long one would cost passes times points on every view. After a few passes every
-  // block is gathered instead, and the next pass is the last.
-  constexpr int kPassesBeforeAll = 4;
+  // gathered: a long one would cost passes times points on every view. After a few passes the
+  // region takes at once every block with points connected to it through blocks with points
+  // (a component cannot leave them: the tolerance is below a block), and the next pass is the last.
+  constexpr int kPassesBeforeConnected = 4;
+  auto growConnected = [&]() {
+    std::unordered_map<std::uint64_t, GridCell> occupied;
+    for (const auto& b : blocks.blocks) occupied.emplace(packCellKey(b.block), b.block);
+    std::vector<GridCell> frontier;
+    for (const auto& kv : grown) frontier.push_back(kv.second);
+    while (!frontier.empty()) {
+      const GridCell c = frontier.back();
+      frontier.pop_back();
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const auto it = occupied.find(packCellKey(c + GridCell(dx, dy, dz)));
+            if (it != occupied.end() && grow(it->second)) frontier.push_back(it->second);
+          }
+    }
+  };
   for (;;) {
-    if (stats_.cluster_passes == kPassesBeforeAll)
-      for (const auto& b : blocks.blocks) grow(b.block);
+    if (stats_.cluster_passes == kPassesBeforeConnected) growConnected();
     if (touchTracks()) continue;
     const std::unordered_set<std::uint64_t> near = nearGrown();
     gathered.clear();

@@ -20,6 +20,7 @@ NeighbourGrid::NeighbourGrid(const PointList& points, double cell_size) : inv_ce
     }
     const std::pair<int, int> range(static_cast<int>(begin), static_cast<int>(end));
     largest_cell_ = std::max(largest_cell_, end - begin);
+    cell_mates_ += static_cast<double>(end - begin) * static_cast<double>(end - begin);
     cells_.emplace(keyed[begin].first, range);
     cell_list_.emplace_back(cellOf(sorted_[begin], inv_cell_), range);
   }

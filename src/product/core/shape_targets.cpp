@@ -10,7 +10,9 @@ namespace fruit_shape_completion {
 void ShapeTargetParams::validate() const {
   if (!(settled_coverage >= 0.0 && settled_coverage <= 1.0))
     throw std::invalid_argument("target_settled_coverage must be in [0, 1], not " + std::to_string(settled_coverage));
-  if (per_fruit < 0) throw std::invalid_argument("targets_per_fruit must be >= 0, not " + std::to_string(per_fruit));
+  // At most the unseen samples a fruit can have (missing_surface_samples is at most 100 000).
+  if (per_fruit < 0 || per_fruit > 100000)
+    throw std::invalid_argument("targets_per_fruit must be in [0, 100000], not " + std::to_string(per_fruit));
   if (!(std::isfinite(offset) && offset >= 0.0 && offset <= 0.2))
     throw std::invalid_argument("target_offset must be in [0, 0.2] m, not " + std::to_string(offset));
   if (!(std::isfinite(view_gain) && view_gain >= 0.0 && view_gain <= 100.0))

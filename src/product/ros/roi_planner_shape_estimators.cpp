@@ -54,7 +54,7 @@ void RoiPlannerShapeEstimators::insertView(const sensor_msgs::PointCloud2& cloud
     }
   } done{this};
   try {
-    std::shared_lock<std::shared_mutex> no_reset(reset_mutex_);
+    std::shared_lock<std::shared_timed_mutex> no_reset(reset_mutex_);
     if (resets_seen != nullptr && *resets_seen != resets_.load()) {
       const std::size_t n = ++loader_.plannerViewDrops().before_reset;
       ROS_INFO_THROTTLE(10.0, "shape estimators: a view the planner mapped before its reset is not mapped (%zu so far)", n);
@@ -128,7 +128,10 @@ ShapeTargetRound RoiPlannerShapeEstimators::targetRound() const {
 }
 
 void RoiPlannerShapeEstimators::reset() {
-  std::unique_lock<std::shared_mutex> no_views(reset_mutex_);
+  std::unique_lock<std::shared_timed_mutex> no_views(reset_mutex_, std::defer_lock);
+  if (!no_views.try_lock_for(std::chrono::seconds(2)))
+    ROS_WARN("shape estimators: reset after 2 s waiting for a view being handed over (is /clock paused?); "
+             "that view may reach the new fruit map");
   ++resets_;
   loader_.plannerViewDrops().views = 0;
   loader_.plannerViewDrops().indices = 0;

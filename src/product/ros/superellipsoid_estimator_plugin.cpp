@@ -138,14 +138,7 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
     }
     if (camera_buffer_ && view.source != host::ViewSource::kCameraFrame) {
       std::string why;
-      bool used = false;
-      try {
-        used = integrateCameraFrame(view.time, &why);
-      } catch (const std::exception& e) {  // a stamp beyond ros::Time's range, say: the view still goes in
-        why = std::string("its frame could not be used: ") + e.what();
-        ++bad_frames_;
-      }
-      if (used) return;
+      if (integrateCameraFrame(view.time, &why)) return;
       // The view's own cloud (pointcloud_roi's 1 cm voxels) is the fallback: less detail, but
       // the view is not lost.
       const std::size_t n = ++fallback_views_;
@@ -260,18 +253,27 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   }
   std::string diagnosticsWarning() const override {
     const host::EstimatorStatus s = status();
+    const std::size_t counts[] = {s.views_refused,  s.rays_over_budget, fruit_clouds_skipped_, fallback_views_,
+                                  not_organized_,   too_large_,         masks_refused_};
+    const char* what[] = {"views refused", "rays over the memory budget", "fruit clouds skipped",
+                          "views without their camera frame (their 1 cm cloud went in; camera_cloud_topic \"\" if meant)",
+                          "camera clouds not organized", "camera frames too large", "camera masks refused"};
+    constexpr std::size_t n = sizeof(counts) / sizeof(counts[0]);
+    // WARN while input is being lost: one late frame must not leave the status WARN for the rest
+    // of the run, only a loss that went on within the last minute.
+    constexpr double kRecent = 60.0;  // [s]
+    const double now = ros::WallTime::now().toSec();
+    std::lock_guard<std::mutex> lock(loss_mutex_);
+    loss_seen_.resize(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (counts[i] > loss_seen_[i]) last_loss_ = now;
+      loss_seen_[i] = counts[i];  // a reset lowers them: nothing lost since
+    }
+    if (!(last_loss_ > 0.0 && now - last_loss_ < kRecent)) return {};
     std::string out;
-    const auto add = [&](std::size_t n, const char* what) {
-      if (n > 0) out += (out.empty() ? "" : ", ") + std::to_string(n) + " " + what;
-    };
-    add(s.views_refused, "views refused");
-    add(s.rays_over_budget, "rays over the memory budget");
-    add(fruit_clouds_skipped_, "fruit clouds skipped");
-    add(fallback_views_, "views without their camera frame (their 1 cm cloud went in; camera_cloud_topic \"\" if meant)");
-    add(not_organized_, "camera clouds not organized");
-    add(too_large_, "camera frames too large");
-    add(masks_refused_, "camera masks refused");
-    return out.empty() ? out : out + " since the last reset (see the counters)";
+    for (std::size_t i = 0; i < n; ++i)
+      if (counts[i] > 0) out += (out.empty() ? "" : ", ") + std::to_string(counts[i]) + " " + what[i];
+    return out + " since the last reset, more within the last minute (see the counters)";
   }
 
  private:
@@ -336,9 +338,15 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
       ++no_frame_;
       return false;
     }
-    const sensor_msgs::PointCloud2ConstPtr msg =
-        camera_buffer_->take(ros::Time(stamp), pair_tolerance_,
-                            frames_received_ > 0 || camera_.getNumPublishers() > 0 ? kFrameWait : 0.0);
+    sensor_msgs::PointCloud2ConstPtr msg;
+    try {
+      msg = camera_buffer_->take(ros::Time(stamp), pair_tolerance_,
+                                 frames_received_ > 0 || camera_.getNumPublishers() > 0 ? kFrameWait : 0.0);
+    } catch (const std::runtime_error& e) {  // a stamp beyond ros::Time's range: the view's own cloud goes in
+      *why = std::string("the view's stamp cannot pair a frame: ") + e.what();
+      ++no_frame_;
+      return false;
+    }
     if (!msg) {
       *why = frames_received_ == 0 ? "nothing received on the camera topic"
                                    : "no camera frame within " + std::to_string(pair_tolerance_) + " s of the view";
@@ -677,6 +685,9 @@ class SuperellipsoidEstimatorPlugin : public ShapeEstimatorPlugin {
   std::size_t max_masks_ = 16;
   std::atomic<std::size_t> masks_received_{0}, masks_refused_{0}, frames_without_mask_{0};
   std::atomic<std::size_t> fruit_clouds_skipped_{0};  // detector fruit clouds that never reached the map
+  mutable std::mutex loss_mutex_;  // diagnosticsWarning's memory of the loss counters
+  mutable std::vector<std::size_t> loss_seen_;
+  mutable double last_loss_ = 0.0;  // [s, wall] when one of them last grew
   std::atomic<std::size_t> fruit_cloud_non_finite_{0};  // NaN/Inf points of detector fruit clouds, dropped on reading
   std::mutex still_mutex_;  // guards rest_
   ros_io::CameraRest rest_;  // without a planner: when the camera has come to rest
