@@ -111,6 +111,21 @@ TEST(CloudIo, TextWithExtraColumnsCommentsAndNaN) {
   EXPECT_FALSE(comma.ok());
   EXPECT_NE(comma.error.find("line 2"), std::string::npos) << comma.error;
   EXPECT_NE(comma.error.find("decimal comma"), std::string::npos) << comma.error;
+  // A spreadsheet's export: a byte-order mark and a header naming the columns; pandas' unnamed
+  // index column first. x, y and z are read where the header names them.
+  writeFile(path, "\xEF\xBB\xBFid,Z,y,X\n7,0.3,0.2,0.1\n8,3,2,1\n");
+  const CloudFile named = readPointCloud(path);
+  ASSERT_TRUE(named.ok()) << named.error;
+  ASSERT_EQ(named.points.size(), 2u);
+  EXPECT_EQ(named.points[0], Eigen::Vector3d(0.1, 0.2, 0.3));
+  writeFile(path, ",x,y,z\n0,0.1,0.2,0.3\n");
+  const CloudFile pandas = readPointCloud(path);
+  ASSERT_TRUE(pandas.ok()) << pandas.error;
+  EXPECT_EQ(pandas.points.at(0), Eigen::Vector3d(0.1, 0.2, 0.3));
+  writeFile(path, "x y w\n0.1 0.2 0.3\n");
+  const CloudFile no_z = readPointCloud(path);
+  EXPECT_FALSE(no_z.ok());
+  EXPECT_NE(no_z.error.find("name the x, y and z"), std::string::npos) << no_z.error;
   std::remove(path.c_str());
   // A NaN row in an ASCII PLY is kept as a non-finite point (counted downstream), not fatal.
   const std::string ply = tempPath("nan.ply");
@@ -375,6 +390,30 @@ TEST(FitCloudTool, ADenseRawViewIsTooLargeAClusterUnlessThinned) {
   EXPECT_TRUE(out["fruits"][0].at("accepted").get<bool>()) << r.out;
   EXPECT_NEAR(out["fruits"][0].at("volume_m3").get<double>(), truth.volume(), 0.25 * truth.volume()) << r.out;
   EXPECT_EQ(out.at("non_finite_points").get<int>(), 1) << r.out;
+  std::remove(input.c_str());
+}
+
+// A fruit cloud in millimetres: every point is alone within the clustering's 1 cm, nothing is
+// fitted, and the tool asks about the unit; --scale 0.001 reads it as metres.
+TEST(FitCloudTool, AMillimetreCloudIsNamedAndScaleReadsIt) {
+  const Superellipsoid truth = Superellipsoid::sphere(0.04, Eigen::Vector3d(0.3, 0.1, 0.5));
+  std::ostringstream text;
+  for (const auto& p : truth.sampleSurface(4000))
+    if (p.z() < 0.5) text << 1000.0 * p.x() << ' ' << 1000.0 * p.y() << ' ' << 1000.0 * p.z() << '\n';
+  const std::string input = tempPath("millimetres.txt");
+  writeFile(input, text.str());
+  CommandResult r = run(fitCloudExe() + " --input " + input + " --json 2>/dev/null");
+  ASSERT_EQ(r.status, 0) << r.out;
+  nlohmann::json out = nlohmann::json::parse(r.out);
+  EXPECT_EQ(out.at("accepted").get<int>(), 0);
+  EXPECT_NE(out.at("warnings").dump().find("millimetres"), std::string::npos) << r.out;
+  r = run(fitCloudExe() + " --input " + input + " --json --scale 0.001 2>/dev/null");
+  ASSERT_EQ(r.status, 0) << r.out;
+  out = nlohmann::json::parse(r.out);
+  ASSERT_EQ(out.at("accepted").get<int>(), 1) << r.out;
+  EXPECT_NEAR(out["fruits"][0].at("volume_m3").get<double>(), truth.volume(), 0.1 * truth.volume()) << r.out;
+  EXPECT_EQ(out.at("warnings").size(), 0u) << r.out;
+  EXPECT_EQ(out.at("units").at("center").get<std::string>(), "m");
   std::remove(input.c_str());
 }
 

@@ -347,8 +347,12 @@ CloudFile readText(const std::string& path) {
   CloudFile f;
   std::string line;
   long long line_no = 0;
+  int column[3] = {0, 1, 2};  // x, y, z; a header line naming them moves them
+  std::size_t columns = 3;    // at least this many per line
+  bool first_data = true;
   while (std::getline(in, line)) {
     ++line_no;
+    if (line_no == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
     const auto first = line.find_first_not_of(" \t\r,");
     if (first == std::string::npos || line[first] == '#') continue;
     if (hasDecimalComma(line)) {
@@ -356,16 +360,54 @@ CloudFile readText(const std::string& path) {
       os << "line " << line_no << ": decimal commas are not supported, use '.' ('" << line.substr(0, 80) << "')";
       return fail(path, os.str());
     }
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::istringstream ls(line);
-    std::string tok[3];
-    double v[3];
-    for (int k = 0; k < 3; ++k) {
-      if (!(ls >> tok[k]) || !parseNumber(tok[k], &v[k])) {
-        std::ostringstream os;
-        os << "line " << line_no << ": expected 'x y z' numbers, got '" << line.substr(0, 80) << "'";
-        return fail(path, os.str());
+    // Comma-separated (a field may be empty: pandas' index column has no name) or by blanks.
+    std::vector<std::string> tok;
+    if (line.find(',') != std::string::npos) {
+      std::istringstream ls(line);
+      for (std::string t; std::getline(ls, t, ',');) {
+        std::istringstream words(t);
+        const std::size_t before = tok.size();
+        for (std::string w; words >> w;) tok.push_back(w);
+        if (tok.size() == before) tok.emplace_back();  // an empty field keeps its place
       }
+    } else {
+      std::istringstream ls(line);
+      for (std::string t; ls >> t;) tok.push_back(t);
+    }
+    if (first_data) {
+      first_data = false;
+      double ignored;
+      bool numbers = true;
+      for (const auto& t : tok) numbers = numbers && (t.empty() || parseNumber(t, &ignored));
+      if (!numbers) {
+        // A header (a spreadsheet's or pandas' export): x, y and z are the columns it names.
+        int found = 0;
+        for (std::size_t c = 0; c < tok.size(); ++c) {
+          std::string name = tok[c];
+          std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return std::tolower(ch); });
+          name.erase(std::remove(name.begin(), name.end(), '"'), name.end());
+          for (int k = 0; k < 3; ++k)
+            if (name == std::string(1, "xyz"[k])) {
+              column[k] = static_cast<int>(c);
+              found |= 1 << k;
+            }
+        }
+        if (found != 7) {
+          std::ostringstream os;
+          os << "line " << line_no << ": a header must name the x, y and z columns, got '" << line.substr(0, 80) << "'";
+          return fail(path, os.str());
+        }
+        columns = static_cast<std::size_t>(*std::max_element(column, column + 3)) + 1;
+        continue;
+      }
+    }
+    double v[3];
+    bool ok = tok.size() >= columns;
+    for (int k = 0; ok && k < 3; ++k) ok = parseNumber(tok[static_cast<std::size_t>(column[k])], &v[k]);
+    if (!ok) {
+      std::ostringstream os;
+      os << "line " << line_no << ": expected 'x y z' numbers, got '" << line.substr(0, 80) << "'";
+      return fail(path, os.str());
     }
     f.points.emplace_back(v[0], v[1], v[2]);
   }

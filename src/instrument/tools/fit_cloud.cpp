@@ -27,6 +27,10 @@ int main(int argc, char** argv) {
   app.add_option("--voxel", voxel, "[m] thin the cloud to one point per cube of this side first (0: as given)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  double scale = 1.0;
+  app.add_option("--scale", scale, "multiply every coordinate by this first (0.001: a cloud in millimetres)")
+      ->check(CLI::Range(1e-6, 1e6))
+      ->capture_default_str();
   PipelineParams params;
   app.add_option("--center-rim-margin", params.center_rim_margin,
                  "the centre prior at most this far [m] behind the deepest seen points (negative: no limit)")
@@ -40,11 +44,17 @@ int main(int argc, char** argv) {
   }
 
   const auto start = std::chrono::steady_clock::now();
-  const CloudFile cloud = readPointCloud(input);
+  CloudFile cloud = readPointCloud(input);
   if (!cloud.ok()) {
     std::cerr << "fit_cloud: " << cloud.error << "\n";
     return 1;
   }
+  std::cerr << "fit_cloud: read " << cloud.points.size() << " points from " << input << "\n";
+  if (scale != 1.0)
+    for (auto& p : cloud.points) p *= scale;
+  if (cloud.points.size() > 2000000 && voxel == 0.0)
+    std::cerr << "fit_cloud: warning: " << cloud.points.size()
+              << " points; a fruit surface needs no more than one per 3 mm (--voxel 0.003)\n";
   // Thinning drops the non-finite points before the pipeline could count them: counted here.
   const int non_finite_before = voxel > 0.0 ? static_cast<int>(std::count_if(cloud.points.begin(), cloud.points.end(),
                                                                                [](const auto& p) { return !p.allFinite(); }))
@@ -67,15 +77,28 @@ int main(int argc, char** argv) {
     std::cerr << "fit_cloud: warning: no cluster of " << pipeline.params().clustering.min_size
               << ".." << pipeline.params().clustering.max_size << " points within "
               << pipeline.params().clustering.tolerance << " m; nothing to fit\n";
-  if (st.left_out.undersized > 0)
-    std::cerr << "fit_cloud: warning: " << st.left_out.undersized_points << (voxel > 0.0 ? " thinned" : "")
-              << " point(s) in " << st.left_out.undersized << " cluster(s) of fewer than "
-              << pipeline.params().clustering.min_size
-              << " points not fitted (stray points, or fruits seen too little)\n";
+  std::vector<std::string> warnings;
+  const int finite = static_cast<int>(cloud.points.size()) - non_finite;
+  if (st.left_out.undersized > 0) {
+    warnings.push_back(std::to_string(st.left_out.undersized_points) + (voxel > 0.0 ? " thinned" : "") +
+                       " point(s) in " + std::to_string(st.left_out.undersized) + " cluster(s) of fewer than " +
+                       std::to_string(pipeline.params().clustering.min_size) +
+                       " points not fitted (stray points, or fruits seen too little)");
+    // Nearly every point alone in its cluster: no two points lie within the clustering's
+    // tolerance, as in a cloud given in millimetres.
+    if (st.left_out.undersized_points > 0.9 * (voxel > 0.0 ? static_cast<int>(thinned.size()) : finite) &&
+        st.left_out.undersized > st.left_out.undersized_points / 3)
+      warnings.push_back("hardly two points lie within " + std::to_string(pipeline.params().clustering.tolerance) +
+                         " m of each other: is the cloud in millimetres or centimetres? fit_cloud reads metres "
+                         "(--scale 0.001 or 0.01)");
+  }
   if (st.left_out.oversized > 0)
-    std::cerr << "fit_cloud: warning: " << st.left_out.oversized << " cluster(s) of more than "
-              << pipeline.params().clustering.max_size
-              << " points not fitted (a cloud far denser than a 4 mm map: thin it, e.g. --voxel 0.003)\n";
+    warnings.push_back(std::to_string(st.left_out.oversized) + " cluster(s) of more than " +
+                       std::to_string(pipeline.params().clustering.max_size) + " points not fitted (" +
+                       (voxel > 0.0 ? "still too dense at this --voxel, or fruits and leaves grown into one: a larger --voxel"
+                                    : "a cloud far denser than a 4 mm map: thin it, e.g. --voxel 0.003") +
+                       ")");
+  for (const auto& w : warnings) std::cerr << "fit_cloud: warning: " << w << "\n";
   for (const auto& f : fruits)
     if (!f.accepted) std::cerr << "fit_cloud: fruit " << f.id << " rejected: " << f.reason << "\n";
 
@@ -102,7 +125,16 @@ int main(int argc, char** argv) {
   }
 
   if (json) {
-    nlohmann::json out = {{"fruits", nlohmann::json::array()}, {"non_finite_points", non_finite},
+    nlohmann::json out = {{"fruits", nlohmann::json::array()},
+                          {"units", {{"center", "m"}, {"a, b, c", "m"}, {"rpy", "rad"}, {"volume", "m^3"}}},
+                          {"input_points", cloud.points.size()},
+                          {"non_finite_points", non_finite},
+                          {"clusters", st.clusters},
+                          {"left_out", {{"undersized", st.left_out.undersized},
+                                        {"undersized_points", st.left_out.undersized_points},
+                                        {"oversized", st.left_out.oversized}}},
+                          {"accepted", st.accepted},
+                          {"warnings", warnings},
                           {"total_ms", total_ms}};
     for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
     std::cout << out.dump() << "\n";

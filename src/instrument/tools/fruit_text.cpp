@@ -29,6 +29,9 @@ nlohmann::json fruitJson(const FruitEstimate& f) {
           // how far the points alone pin the size down, which the interval is also made from
           {"log_volume_spread",
            f.accepted && std::isfinite(f.log_volume_spread) ? nlohmann::json(f.log_volume_spread) : nlohmann::json()},
+          // the shortest axis rests on min_axis: sized by the bound, not the points (a patch of a
+          // larger fruit, or a fruit smaller than the bound); the interval reaches far above
+          {"size_at_bound", f.size_at_bound},
           {"bbox_volume_m3", f.bbox_volume},
           {"converged", f.converged},
           {"accepted", f.accepted},

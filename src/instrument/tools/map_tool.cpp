@@ -44,7 +44,7 @@ int main(int argc, char** argv) {
   }
   std::vector<CarriedSightings> carried;
   if (!readCarriedSightings(rest, &carried, &err)) {
-    std::cerr << "map_tool: warning: " << map_file << ": " << err << "; fruits exported without views\n";
+    std::cerr << "map_tool: warning: " << map_file << ": " << err << "; the saved views are not used\n";
     carried.clear();
   }
   const PointList surface = extractSurfacePoints(map);
@@ -85,9 +85,14 @@ int main(int argc, char** argv) {
   }
   if (json) {
     nlohmann::json out = {{"blocks", map.blockCount()},        {"observed_voxels", map.observedVoxelCount()},
-                          {"surface_points", surface.size()},   {"memory_bytes", map.memoryBytes()},
-                          {"fruits", nlohmann::json::array()}};
-    for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
+                          {"surface_points", surface.size()},   {"memory_bytes", map.memoryBytes()}};
+    // Without --fit (or --export-fruits) nothing was fitted: no "fruits" key, not an empty list
+    // that would read as a map without fruits.
+    if (fit || !export_out.empty()) {
+      out["fruits"] = nlohmann::json::array();
+      out["units"] = {{"center", "m"}, {"a, b, c", "m"}, {"rpy", "rad"}, {"volume", "m^3"}};
+      for (const auto& f : fruits) out["fruits"].push_back(fruitJson(f));
+    }
     std::cout << out.dump() << "\n";
   } else if (fit) {
     printFruitTable(std::cout, fruits);
