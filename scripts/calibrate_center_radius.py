@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Makes and checks the table of center_uncertainty.cpp: the 90th percentile of the distance
 from a fitted to the true fruit centre, per RMS class and seen-share knot.
 

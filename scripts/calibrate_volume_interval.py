@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Makes and checks the model of volume_interval.cpp: the 5th and 95th percentiles of
 log(true / fitted volume) as linear functions of the log of the fit's log-volume
 spread (the spread its residuals and Jacobian imply), its seen share, its RMS residual beyond

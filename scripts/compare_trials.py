@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Compares two run_trials output folders at given times, e.g. with and without shape targets.
 
 usage: scripts/compare_trials.py DIR_A DIR_B [--at 60,180] [--column se_ma50_fruits]

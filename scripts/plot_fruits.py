@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Draws a fruit report (export_fruits, map_tool --export-fruits) as one PNG: a top view of the
 fruits coloured by volume, and a histogram of their volumes.
 

@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Plots detected fruits over time from a run_trials output folder, like the paper's figures.
 
 usage: scripts/plot_results.py DIR [--out FILE.png]

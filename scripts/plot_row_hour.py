@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """An hour on the row: per-view work, insertView latency, memory and fruits over time.
 
 usage: scripts/plot_row_hour.py DIR [--out FILE.png]

@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Fits single camera views of the real capsicum fruits, one fruit at a time, through fit_cloud.
 
 usage: scripts/real_fruit_views.py [--set 0|1] [--bin-dir DIR] [--shared DIR] [--json OUT]

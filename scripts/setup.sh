@@ -11,7 +11,7 @@ PACKAGES=(
   libtf2-ros-dev libtf2-eigen-dev
   libeigen3-dev libceres-dev liboctomap-dev libpcl-dev libpcl-conversions-dev
   libassimp-dev libembree-dev libyaml-cpp-dev libpng-dev
-  libgtest-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev vcstool
+  libgtest-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev vcstool git
   libstd-srvs-dev libdiagnostic-updater-dev libtopic-tools-dev
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure rosbash
   python3-numpy python3-matplotlib python3-scipy
