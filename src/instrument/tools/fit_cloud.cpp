@@ -71,14 +71,14 @@ int main(int argc, char** argv) {
   if (non_finite > 0) std::cerr << " (" << non_finite << " NaN/Inf skipped)";
   if (voxel > 0.0) std::cerr << ", thinned to " << thinned.size() << " at " << 1000.0 * voxel << " mm";
   std::cerr << ", " << st.clusters << " clusters, " << st.accepted << " accepted fits\n";
-  if (static_cast<int>(cloud.points.size()) - non_finite == 0)
-    std::cerr << "fit_cloud: warning: the cloud has no finite points, nothing to fit\n";
-  else if (st.clusters == 0 && st.left_out.oversized == 0 && st.left_out.undersized == 0)
-    std::cerr << "fit_cloud: warning: no cluster of " << pipeline.params().clustering.min_size
-              << ".." << pipeline.params().clustering.max_size << " points within "
-              << pipeline.params().clustering.tolerance << " m; nothing to fit\n";
   std::vector<std::string> warnings;
   const int finite = static_cast<int>(cloud.points.size()) - non_finite;
+  if (finite == 0)
+    warnings.push_back("the cloud has no finite points, nothing to fit");
+  else if (st.clusters == 0 && st.left_out.oversized == 0 && st.left_out.undersized == 0)
+    warnings.push_back("no cluster of " + std::to_string(pipeline.params().clustering.min_size) + ".." +
+                       std::to_string(pipeline.params().clustering.max_size) + " points within " +
+                       std::to_string(pipeline.params().clustering.tolerance) + " m; nothing to fit");
   if (st.left_out.undersized > 0) {
     warnings.push_back(std::to_string(st.left_out.undersized_points) + (voxel > 0.0 ? " thinned" : "") +
                        " point(s) in " + std::to_string(st.left_out.undersized) + " cluster(s) of fewer than " +
