@@ -25,7 +25,7 @@ set +u
 source "$UPSTREAM_DEVEL/setup.bash"
 set -u
 BUILD_DIR="$ROOT/build-$KIND"
-if [ ! -f "$BUILD_DIR/Makefile" ]; then  # a failed or interrupted configure leaves no Makefile
+if [ ! -f "$BUILD_DIR/Makefile" ] && [ ! -f "$BUILD_DIR/build.ninja" ]; then  # a failed or interrupted configure leaves no build files
   cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPYTHON_EXECUTABLE=/usr/bin/python3 \
         -DCMAKE_CXX_FLAGS="$FLAGS" -DCMAKE_EXE_LINKER_FLAGS="$FLAGS" -DCMAKE_SHARED_LINKER_FLAGS="$FLAGS" \
         >"$BUILD_DIR.configure.log" 2>&1 || { cat "$BUILD_DIR.configure.log" >&2; exit 1; }

@@ -125,7 +125,17 @@ TEST(CloudIo, TextWithExtraColumnsCommentsAndNaN) {
   writeFile(path, "x y w\n0.1 0.2 0.3\n");
   const CloudFile no_z = readPointCloud(path);
   EXPECT_FALSE(no_z.ok());
-  EXPECT_NE(no_z.error.find("name the x, y and z"), std::string::npos) << no_z.error;
+  EXPECT_NE(no_z.error.find("naming the x, y and z"), std::string::npos) << no_z.error;
+  // Units after the names, and a label per point in a column the header names too.
+  writeFile(path, "Point ID,x (m),y (m),z (m),label\n1,0.1,0.2,0.3,leaf\n");
+  const CloudFile units = readPointCloud(path);
+  ASSERT_TRUE(units.ok()) << units.error;
+  EXPECT_EQ(units.points.at(0), Eigen::Vector3d(0.1, 0.2, 0.3));
+  // Without a header, words after x, y and z are extra columns, as before.
+  writeFile(path, "0.1 0.2 0.3 leaf\n");
+  const CloudFile labelled = readPointCloud(path);
+  ASSERT_TRUE(labelled.ok()) << labelled.error;
+  EXPECT_EQ(labelled.points.at(0), Eigen::Vector3d(0.1, 0.2, 0.3));
   std::remove(path.c_str());
   // A NaN row in an ASCII PLY is kept as a non-finite point (counted downstream), not fatal.
   const std::string ply = tempPath("nan.ply");

@@ -360,32 +360,35 @@ CloudFile readText(const std::string& path) {
       os << "line " << line_no << ": decimal commas are not supported, use '.' ('" << line.substr(0, 80) << "')";
       return fail(path, os.str());
     }
-    // Comma-separated (a field may be empty: pandas' index column has no name) or by blanks.
+    // Comma-separated, one trimmed token per field (a field may be empty: pandas' index column
+    // has no name; a header's may hold blanks: "x (m)"), or separated by blanks.
     std::vector<std::string> tok;
     if (line.find(',') != std::string::npos) {
       std::istringstream ls(line);
       for (std::string t; std::getline(ls, t, ',');) {
-        std::istringstream words(t);
-        const std::size_t before = tok.size();
-        for (std::string w; words >> w;) tok.push_back(w);
-        if (tok.size() == before) tok.emplace_back();  // an empty field keeps its place
+        const auto b = t.find_first_not_of(" \t\r"), e = t.find_last_not_of(" \t\r");
+        tok.push_back(b == std::string::npos ? std::string() : t.substr(b, e - b + 1));
       }
+      if (!tok.empty() && tok.back().empty()) tok.pop_back();  // a trailing comma
     } else {
       std::istringstream ls(line);
       for (std::string t; ls >> t;) tok.push_back(t);
     }
     if (first_data) {
       first_data = false;
+      // A header (a spreadsheet's or pandas' export) when one of the first three fields is not a
+      // number (more columns may hold words: a label per point); x, y and z are the columns it names.
       double ignored;
       bool numbers = true;
-      for (const auto& t : tok) numbers = numbers && (t.empty() || parseNumber(t, &ignored));
+      for (std::size_t c = 0; c < std::min<std::size_t>(3, tok.size()); ++c)
+        numbers = numbers && (tok[c].empty() || parseNumber(tok[c], &ignored));
       if (!numbers) {
-        // A header (a spreadsheet's or pandas' export): x, y and z are the columns it names.
         int found = 0;
         for (std::size_t c = 0; c < tok.size(); ++c) {
           std::string name = tok[c];
           std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return std::tolower(ch); });
           name.erase(std::remove(name.begin(), name.end(), '"'), name.end());
+          name = name.substr(0, name.find_first_of(" ([\t"));  // "x (m)", "x [m]": the name before its unit
           for (int k = 0; k < 3; ++k)
             if (name == std::string(1, "xyz"[k])) {
               column[k] = static_cast<int>(c);
@@ -394,7 +397,8 @@ CloudFile readText(const std::string& path) {
         }
         if (found != 7) {
           std::ostringstream os;
-          os << "line " << line_no << ": a header must name the x, y and z columns, got '" << line.substr(0, 80) << "'";
+          os << "line " << line_no << ": expected 'x y z' numbers, or a header naming the x, y and z columns, got '"
+             << line.substr(0, 80) << "'";
           return fail(path, os.str());
         }
         columns = static_cast<std::size_t>(*std::max_element(column, column + 3)) + 1;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <iostream>
+#include <sstream>
 #include <stdexcept>
 
 #include "fruit_text.h"
@@ -75,22 +76,31 @@ int main(int argc, char** argv) {
   const int finite = static_cast<int>(cloud.points.size()) - non_finite;
   if (finite == 0)
     warnings.push_back("the cloud has no finite points, nothing to fit");
-  else if (st.clusters == 0 && st.left_out.oversized == 0 && st.left_out.undersized == 0)
-    warnings.push_back("no cluster of " + std::to_string(pipeline.params().clustering.min_size) + ".." +
-                       std::to_string(pipeline.params().clustering.max_size) + " points within " +
-                       std::to_string(pipeline.params().clustering.tolerance) + " m; nothing to fit");
+  else if (st.clusters == 0 && st.left_out.oversized == 0 && st.left_out.undersized == 0) {
+    std::ostringstream os;
+    os << "no cluster of " << pipeline.params().clustering.min_size << ".." << pipeline.params().clustering.max_size
+       << " points within " << pipeline.params().clustering.tolerance << " m; nothing to fit";
+    warnings.push_back(os.str());
+  }
   if (st.left_out.undersized > 0) {
     warnings.push_back(std::to_string(st.left_out.undersized_points) + (voxel > 0.0 ? " thinned" : "") +
                        " point(s) in " + std::to_string(st.left_out.undersized) + " cluster(s) of fewer than " +
                        std::to_string(pipeline.params().clustering.min_size) +
                        " points not fitted (stray points, or fruits seen too little)");
-    // Nearly every point alone in its cluster: no two points lie within the clustering's
-    // tolerance, as in a cloud given in millimetres.
+    // Nearly every point alone in its cluster over an extent no fruit cloud has in metres: a
+    // cloud given in millimetres or centimetres (not one thinned coarser than the tolerance).
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    for (const auto& p : cloud.points)
+      if (p.allFinite()) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const double tolerance = pipeline.params().clustering.tolerance;
     if (st.left_out.undersized_points > 0.9 * (voxel > 0.0 ? static_cast<int>(thinned.size()) : finite) &&
-        st.left_out.undersized > st.left_out.undersized_points / 3)
-      warnings.push_back("hardly two points lie within " + std::to_string(pipeline.params().clustering.tolerance) +
-                         " m of each other: is the cloud in millimetres or centimetres? fit_cloud reads metres "
-                         "(--scale 0.001 or 0.01)");
+        st.left_out.undersized > st.left_out.undersized_points / 3 && voxel < tolerance && finite > 0 &&
+        (hi - lo).maxCoeff() > 5.0) {
+      std::ostringstream os;
+      os << "hardly two points lie within " << tolerance << " m of each other, over " << (hi - lo).maxCoeff()
+         << " units: is the cloud in millimetres or centimetres? fit_cloud reads metres (--scale 0.001 or 0.01)";
+      warnings.push_back(os.str());
+    }
   }
   if (st.left_out.oversized > 0)
     warnings.push_back(std::to_string(st.left_out.oversized) + " cluster(s) of more than " +
