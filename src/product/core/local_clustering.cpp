@@ -84,8 +84,12 @@ std::vector<std::vector<int>> FruitShapePipeline::localClusters(const SurfaceBlo
           }
     }
   };
+  bool connected = false;  // once: it only speeds the growth up, the passes after it still finish it
   for (;;) {
-    if (stats_.cluster_passes == kPassesBeforeConnected) growConnected();
+    if (!connected && stats_.cluster_passes == kPassesBeforeConnected) {
+      growConnected();
+      connected = true;
+    }
     if (touchTracks()) continue;
     const std::unordered_set<std::uint64_t> near = nearGrown();
     gathered.clear();
