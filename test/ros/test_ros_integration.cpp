@@ -7,6 +7,7 @@
 #include <unistd.h>
 #include <fruit_shape_completion/instrument/sim/analytic_depth_camera.h>
 #include <fruit_shape_completion/ros/camera_frames.h>
+#include <fruit_shape_completion/ros/estimator_params.h>
 #include <fruit_shape_completion/ros/fruit_publisher.h>
 #include <fruit_shape_completion/ros/roi_planner_shape_estimators.h>
 #include <fruit_shape_completion/ros/shape_estimator_loader.h>
@@ -953,6 +954,31 @@ TEST(Plugin, WrongNameOrBadParameterFailsAtStartWithAMessage) {
     EXPECT_NE(std::string(e.what()).find("fruit_cloud_topic"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("a string"), std::string::npos) << e.what();
   }
+}
+
+// fruit_mapping_node's own keys as the node checks them: a misspelt one stops it naming the key.
+TEST(FruitMappingNode, AMisspeltKeyOfItsOwnIsNamedWithTheValidOnes) {
+  ros::NodeHandle nh("~/node_keys");
+  setOneEstimator(nh, "fruits", "fruit_shape_completion/SuperellipsoidEstimator");
+  nh.setParam("fruits/alpha", 0.01);
+  nh.setParam("tf_wait", 1.0);
+  std::vector<std::string> known = {"map_frame", "roi_topic", "tf_wait", "shape_estimators"};
+  const std::vector<std::string> names = ros_io::listedEstimatorNames(nh);
+  ASSERT_EQ(names, std::vector<std::string>{"fruits"});
+  known.insert(known.end(), names.begin(), names.end());
+  EXPECT_NO_THROW(ros_io::rejectUnknownKeys(nh, known));
+  nh.setParam("tf_wiat", 2.0);
+  try {
+    ros_io::rejectUnknownKeys(nh, known);
+    FAIL() << "a misspelt key must throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("tf_wiat"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("tf_wait"), std::string::npos) << e.what();  // valid keys listed
+  }
+  nh.deleteParam("tf_wiat");
+  // Estimator parameters live in the estimator's namespace, not beside the node's keys.
+  nh.setParam("alpha", 0.01);
+  EXPECT_THROW(ros_io::rejectUnknownKeys(nh, known), std::runtime_error);
 }
 
 TEST(FruitPublisher, CloudsRoundTripAndLyingHeadersAreRefused) {

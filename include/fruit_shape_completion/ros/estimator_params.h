@@ -25,5 +25,14 @@ void readStringParam(const ros::NodeHandle& nh, const std::string& name, std::st
 void readNumberParam(const ros::NodeHandle& nh, const std::string& name, double* value);
 void readIntParam(const ros::NodeHandle& nh, const std::string& name, int* value);
 
+// Throws std::runtime_error naming the first key directly under `nh`'s namespace that is not in
+// `known` (a misspelt key would otherwise leave its parameter at the default without a word),
+// with the valid keys.
+void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>& known);
+
+// The names of the estimators listed in `nh`'s shape_estimators (entries without a string name
+// are left to the loader to refuse).
+std::vector<std::string> listedEstimatorNames(const ros::NodeHandle& nh);
+
 }  // namespace ros_io
 }  // namespace fruit_shape_completion

@@ -31,7 +31,8 @@ void readParam(const ros::NodeHandle& nh, const std::string& name, T& value, std
   value = v;
 }
 
-// A misspelt key would otherwise leave its parameter at the default without a word.
+}  // namespace
+
 void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>& known) {
   std::vector<std::string> names;
   if (!ros::param::getParamNames(names)) return;
@@ -46,7 +47,18 @@ void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>
   }
 }
 
-}  // namespace
+std::vector<std::string> listedEstimatorNames(const ros::NodeHandle& nh) {
+  std::vector<std::string> names;
+  XmlRpc::XmlRpcValue list;
+  if (!nh.getParam("shape_estimators", list) || list.getType() != XmlRpc::XmlRpcValue::TypeArray) return names;
+  for (int i = 0; i < list.size(); ++i) {
+    XmlRpc::XmlRpcValue& e = list[i];
+    if (e.getType() == XmlRpc::XmlRpcValue::TypeStruct && e.hasMember("name") &&
+        e["name"].getType() == XmlRpc::XmlRpcValue::TypeString)
+      names.push_back(static_cast<std::string>(e["name"]));
+  }
+  return names;
+}
 
 const std::vector<std::string>& pluginInputKeys() {
   static const std::vector<std::string> keys = {"superellipsoids_topic", "fruit_cloud_topic",     "camera_cloud_topic",

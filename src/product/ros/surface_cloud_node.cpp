@@ -28,6 +28,8 @@ int main(int argc, char** argv) {
     ros_io::readStringParam(pnh, "superellipsoids_topic", &superellipsoids_topic);
     if (map_frame.empty()) throw std::runtime_error("~map_frame must name a frame");
     if (superellipsoids_topic.empty()) throw std::runtime_error("~superellipsoids_topic must name a topic");
+    // shape_estimators: the shared config file's list, which names the namespace read here.
+    ros_io::rejectUnknownKeys(pnh, {"map_frame", "superellipsoids_topic", "superellipsoid", "shape_estimators"});
     // Fit parameters as for the plugin, from ~superellipsoid/ (config/shape_estimators.yaml); the
     // plugin's input topics there do not apply to a node fed surface clouds.
     pipeline = std::make_unique<FruitShapePipeline>(
