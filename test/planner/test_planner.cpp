@@ -146,12 +146,20 @@ FruitViews viewsAround(const Superellipsoid& truth, int n, double turn) {
 
 }  // namespace
 
+// The indices of the flagged points, as pointcloud_roi lists its ROI points.
+std::vector<std::int32_t> flagged(const std::vector<char>& is_fruit) {
+  std::vector<std::int32_t> out;
+  for (std::size_t i = 0; i < is_fruit.size(); ++i)
+    if (is_fruit[i]) out.push_back(static_cast<std::int32_t>(i));
+  return out;
+}
+
 TEST(RoiOcTree, ScanMarksFreeOccupiedAndRoiCells) {
   RoiOcTree tree(0.01);
   PointList pts;
   std::vector<char> fruit;
   wallScan(&pts, &fruit);
-  tree.insertScan(pts, fruit, Eigen::Vector3d(0, 0, 0.5), 3.0);
+  tree.insertRoiCloud(pts, flagged(fruit), Eigen::Vector3d(0, 0, 0.5));
   const RoiOcTreeNode* wall = tree.search(0.2, 1.0, 0.3);
   ASSERT_NE(wall, nullptr);
   EXPECT_TRUE(tree.isNodeOccupied(wall));
@@ -175,8 +183,7 @@ TEST(RoiOcTree, ScanMarksFreeOccupiedAndRoiCells) {
     EXPECT_FALSE(tree.isNodeOccupied(n));
   }
   // Seen again as leaf: the ROI value drops below zero after enough misses.
-  std::vector<char> none(pts.size(), 0);
-  for (int i = 0; i < 4; ++i) tree.insertScan(pts, none, Eigen::Vector3d(0, 0, 0.5), 3.0);
+  for (int i = 0; i < 4; ++i) tree.insertRoiCloud(pts, {}, Eigen::Vector3d(0, 0, 0.5));
   EXPECT_TRUE(tree.roiClusters(10).empty());
   // A fruit hit inside a pruned region (a solid block seen often enough that its voxels are
   // all clamped and alike) changes that one voxel's ROI only, not the whole pruned node's.
@@ -186,10 +193,10 @@ TEST(RoiOcTree, ScanMarksFreeOccupiedAndRoiCells) {
     for (int x = 0; x < 8; ++x)
       for (int y = 0; y < 8; ++y)
         for (int z = 0; z < 8; ++z) cube.emplace_back(0.8 + 0.01 * x + 0.005, 0.01 * y + 0.005, 0.48 + 0.01 * z + 0.005);
-    for (int i = 0; i < 12; ++i) t.insertScan(cube, std::vector<char>(cube.size(), 0), Eigen::Vector3d(0, 0, 0.5), 3.0);
+    for (int i = 0; i < 12; ++i) t.insertRoiCloud(cube, {}, Eigen::Vector3d(0, 0, 0.5));
     t.prune();
     const Eigen::Vector3d hit = cube[0];
-    t.insertScan({hit}, {1}, Eigen::Vector3d(0, 0, 0.5), 3.0);
+    t.insertRoiCloud({hit}, {0}, Eigen::Vector3d(0, 0, 0.5));
     const RoiOcTreeNode* n = t.search(hit.x(), hit.y(), hit.z());
     ASSERT_NE(n, nullptr);
     EXPECT_FLOAT_EQ(n->roiLogOdds(), t.roi_min + t.roi_hit);
@@ -197,9 +204,17 @@ TEST(RoiOcTree, ScanMarksFreeOccupiedAndRoiCells) {
     ASSERT_NE(m, nullptr);
     EXPECT_FLOAT_EQ(m->roiLogOdds(), t.roi_min) << "a neighbour of the hit voxel took its ROI";
   }
+  {  // A voxel holding an ROI point and another point gains ROI (insertRegionScan's priority).
+    RoiOcTree t(0.01);
+    const Eigen::Vector3d a(0.3051, 0.0051, 0.5051), b(0.3059, 0.0059, 0.5059);
+    ASSERT_EQ(t.insertRoiCloud({a, b}, {1}, Eigen::Vector3d(0, 0, 0.5)), 2u);
+    const RoiOcTreeNode* n = t.search(a.x(), a.y(), a.z());
+    ASSERT_NE(n, nullptr);
+    EXPECT_FLOAT_EQ(n->roiLogOdds(), t.roi_hit);
+  }
   // Bad input: a NaN origin or NaN points change nothing and do not crash.
-  EXPECT_EQ(tree.insertScan(pts, fruit, Eigen::Vector3d(NAN, 0, 0), 3.0), 0u);
-  EXPECT_EQ(tree.insertScan({Eigen::Vector3d(NAN, 0, 0)}, {1}, Eigen::Vector3d::Zero(), 3.0), 0u);
+  EXPECT_EQ(tree.insertRoiCloud(pts, flagged(fruit), Eigen::Vector3d(NAN, 0, 0)), 0u);
+  EXPECT_EQ(tree.insertRoiCloud({Eigen::Vector3d(NAN, 0, 0)}, {0, 5, -1}, Eigen::Vector3d::Zero()), 0u);
 }
 
 TEST(Evaluation, BoxTruthIsTheBoxOfTheFruitsVoxelCentres) {
@@ -957,11 +972,11 @@ TEST(ViewpointPlanner, BadScenesGiveAMessageAndAValidResult) {
   p.duration = 20;
   {  // unusable parameters
     PlannerParams bad = p;
-    bad.octree_pixel_step = 0;
+    bad.roi_leaf = 0.0;
     ShapeEstimatorHost host;
     const EpisodeResult r = runEpisode(s.scene, *s.renderer, s.truth, host, bad);
     EXPECT_TRUE(r.views.empty());
-    EXPECT_NE(r.message.find("octree_pixel_step"), std::string::npos) << r.message;
+    EXPECT_NE(r.message.find("roi_leaf"), std::string::npos) << r.message;
     PlannerParams other = p;
     other.octree_resolution = 0.02;  // the truth's boxes were made for 1 cm cells
     const EpisodeResult r2 = runEpisode(s.scene, *s.renderer, s.truth, host, other);

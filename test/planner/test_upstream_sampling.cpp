@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cmath>
+#include <set>
 
 using namespace fruit_shape_completion;
 using namespace fruit_shape_completion::planner;
@@ -68,6 +69,30 @@ SampledCandidates sampleRoiOnly(const RoiOcTree& tree, const ShapeTargets& t, co
 }
 
 }  // namespace
+
+// A solid 2 x 2 x 2 block of alike ROI voxels prunes into one leaf; upstream's ROI key set keeps
+// all eight voxels however the tree prunes.
+TEST(UpstreamSampling, APrunedRoiBlockGivesEachOfItsVoxels) {
+  RoiOcTree tree(kRes);
+  for (int x = 2; x < 4; ++x)
+    for (int y = 0; y < 2; ++y)
+      for (int z = 0; z < 2; ++z) setOccupied(&tree, x, y, z, true);
+  setOccupied(&tree, 10, 10, 10, true);
+  tree.prune();
+  int pruned = 0;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+    pruned += static_cast<int>(it.getDepth()) < static_cast<int>(tree.getTreeDepth());
+  ASSERT_EQ(pruned, 1) << "the block did not prune: the test would not test the expansion";
+  const auto keys = upstreamRoiKeys(tree);
+  ASSERT_EQ(keys.size(), 9u);
+  const octomap::OcTreeKey origin = tree.coordToKey(cell(0, 0, 0));
+  std::set<std::array<int, 3>> got;
+  for (const auto& k : keys) got.insert({k[0] - origin[0], k[1] - origin[1], k[2] - origin[2]});
+  for (int x = 2; x < 4; ++x)
+    for (int y = 0; y < 2; ++y)
+      for (int z = 0; z < 2; ++z) EXPECT_EQ(got.count({x, y, z}), 1u) << x << " " << y << " " << z;
+  EXPECT_EQ(got.count({10, 10, 10}), 1u);
+}
 
 TEST(UpstreamSampling, InflatedRoiValuesFallOneSixthPerFiveCentimetreStep) {
   // An ROI voxel at 1 cm inside the 5 cm cell [0, 5) cm; computeInflatedRois(0.05, 0.3):

@@ -18,18 +18,17 @@ CameraView captureView(const sim::RgbdRenderer& renderer, const PinholeCamera& c
   v.frame = renderer.render(camera, noise, p.render_threads);
   v.mask = sim::redMask(v.frame.rgb, v.frame.width, v.frame.height, red_test);
   v.pose = sim::cameraPose(camera);
+  v.roi = pointcloudRoi(v.frame, p.roi_leaf, red_test);
   switch (p.input) {
     case PlannerParams::Input::kCamera:
       v.organized = sim::organizedFrame(v.frame);
       v.source = ViewSource::kCameraFrame;
       break;
-    case PlannerParams::Input::kRoi: {
-      RoiCloud roi = pointcloudRoi(v.frame, p.roi_leaf, red_test);
-      for (const auto i : roi.roi_indices) v.fruit_points.push_back(roi.points[static_cast<std::size_t>(i)]);
-      v.all_points = std::move(roi.points);
+    case PlannerParams::Input::kRoi:
+      for (const auto i : v.roi.roi_indices) v.fruit_points.push_back(v.roi.points[static_cast<std::size_t>(i)]);
+      v.all_points = v.roi.points;
       v.source = ViewSource::kRoiCloud;
       break;
-    }
     case PlannerParams::Input::kFruitCloud:
       v.fruit_points = sim::cloudsFromFrame(v.frame, v.mask).fruit;
       v.source = ViewSource::kFruitCloud;
@@ -61,21 +60,8 @@ void countMask(const CameraView& v, const std::vector<char>& red_fruit_material,
   }
 }
 
-void insertIntoOctree(RoiOcTree* tree, const CameraView& v, const PlannerParams& p) {
-  const PinholeCamera& cam = v.camera;
-  const sim::RgbdFrame& frame = v.frame;
-  PointList octree_points;
-  std::vector<char> octree_fruit;
-  const double f = cam.focalLength();
-  for (int row = 0; row < frame.height; row += p.octree_pixel_step)
-    for (int u = 0; u < frame.width; u += p.octree_pixel_step) {
-      const std::size_t px = static_cast<std::size_t>(row) * frame.width + u;
-      const double z = frame.depth[px];
-      if (!std::isfinite(z)) continue;
-      octree_points.push_back(cam.position + cam.rotation * cam.pixelPoint(u, row, z, f));
-      octree_fruit.push_back(v.mask[px] ? 1 : 0);
-    }
-  tree->insertScan(octree_points, octree_fruit, cam.position, p.octree_max_range);
+void insertIntoOctree(RoiOcTree* tree, const CameraView& v) {
+  tree->insertRoiCloud(v.roi.points, v.roi.roi_indices, v.camera.position);
 }
 
 }  // namespace planner

@@ -175,7 +175,7 @@ EpisodeResult runEpisode(const sim::Scene& scene, const sim::RgbdRenderer& rende
         }
         compute0 = std::chrono::steady_clock::now();
 
-        insertIntoOctree(&tree, captured, p);
+        insertIntoOctree(&tree, captured);
         if (arm) known = occupiedField(tree, p.arm_map_resolution);
         // The planner blocks only on insertView; the fit runs beside it (as the plugin's worker
         // does). Its results reach the planner at the simulated time they would be ready, the

@@ -42,8 +42,6 @@ std::string PlannerParams::problem() const {
     return "ik_failure_cost and plan_failure_cost must be >= 0";
   if (!finite_pos(retry_cost)) return "retry_cost must be > 0";
   if (!(octree_resolution >= 0.001 && octree_resolution <= 0.5)) return "octree_resolution must be in [0.001, 0.5] m";
-  if (octree_pixel_step < 1) return "octree_pixel_step must be >= 1";
-  if (!finite_pos(octree_max_range)) return "octree_max_range must be > 0";
   if (!(std::isfinite(clearance) && clearance >= 0.0)) return "clearance must be >= 0";
   if (render_threads < 1) return "render_threads must be >= 1";
   if (!(std::isfinite(trolley_move_length) && trolley_move_length >= 0.0)) return "trolley_move_length must be >= 0";

@@ -30,35 +30,38 @@ octomap::OcTreeKey RoiOcTree::key(const Eigen::Vector3d& p) const {
   return coordToKey(octomap::point3d(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
 }
 
-std::size_t RoiOcTree::insertScan(const PointList& points, const std::vector<char>& is_fruit,
-                                  const Eigen::Vector3d& origin, double max_range) {
+std::size_t RoiOcTree::insertRoiCloud(const PointList& points, const std::vector<std::int32_t>& roi_indices,
+                                      const Eigen::Vector3d& origin) {
   if (!origin.allFinite()) return 0;
+  std::vector<char> in_roi(points.size(), 0);
+  for (const auto i : roi_indices)
+    if (i >= 0 && static_cast<std::size_t>(i) < points.size()) in_roi[static_cast<std::size_t>(i)] = 1;
   octomap::Pointcloud cloud;
   cloud.reserve(points.size());
-  // Per end-point voxel: any fruit point makes it a fruit hit.
-  std::unordered_map<octomap::OcTreeKey, bool, octomap::OcTreeKey::KeyHash> endpoint_fruit;
+  using KeySet = std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash>;
+  KeySet region, off_region;
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Point& p = points[i];
-    if (!p.allFinite() || (p - origin).norm() > max_range) continue;
-    cloud.push_back(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+    if (!p.allFinite()) continue;
+    const octomap::point3d q(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+    cloud.push_back(q);
     octomap::OcTreeKey k;
-    if (!coordToKeyChecked(octomap::point3d(p.x(), p.y(), p.z()), k)) continue;
-    bool& fruit = endpoint_fruit[k];
-    fruit = fruit || (i < is_fruit.size() && is_fruit[i]);
+    if (coordToKeyChecked(q, k)) (in_roi[i] ? region : off_region).insert(k);
   }
-  const octomap::point3d o(origin.x(), origin.y(), origin.z());
-  insertPointCloud(cloud, o, max_range, false, true);
-  for (const auto& kv : endpoint_fruit) {
-    RoiOcTreeNode* n = search(kv.first);
-    if (n == nullptr) continue;
+  insertPointCloud(cloud, octomap::point3d(origin.x(), origin.y(), origin.z()), -1.0, false, false);
+  auto update = [&](const octomap::OcTreeKey& k, float step) {
+    RoiOcTreeNode* n = search(k);
+    if (n == nullptr) return;
     // search() may return a pruned inner node standing for many voxels; setting the same value
     // again expands it down to the single voxel (lazy: no re-pruning), so only that voxel's ROI
     // changes.
-    n = setNodeValue(kv.first, n->getLogOdds(), true);
-    if (n == nullptr) continue;
-    const float v = n->roiLogOdds() + (kv.second ? roi_hit : roi_miss);
-    n->setRoiLogOdds(std::min(roi_max, std::max(roi_min, v)));
-  }
+    n = setNodeValue(k, n->getLogOdds(), true);
+    if (n == nullptr) return;
+    n->setRoiLogOdds(std::min(roi_max, std::max(roi_min, n->roiLogOdds() + step)));
+  };
+  for (const auto& k : region) update(k, roi_hit);
+  for (const auto& k : off_region)
+    if (region.count(k) == 0) update(k, roi_miss);  // ROI points' voxels have priority
   return cloud.size();
 }
 

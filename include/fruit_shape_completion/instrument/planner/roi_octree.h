@@ -8,6 +8,7 @@
 #include <octomap/OccupancyOcTreeBase.h>
 #include <octomap/OcTreeNode.h>
 
+#include <cstdint>
 #include <vector>
 
 namespace fruit_shape_completion {
@@ -49,10 +50,13 @@ class RoiOcTree : public octomap::OccupancyOcTreeBase<RoiOcTreeNode> {
   float roi_hit = 0.847f, roi_miss = -0.4f, roi_min = -2.0f, roi_max = 3.5f;
   float roi_threshold = 0.0f;  // ROI cells: occupied with ROI log-odds above this
 
-  // Inserts a scan (world frame) from `origin`; is_fruit has one flag per point. Non-finite
-  // points are skipped. Returns the number of points used.
-  std::size_t insertScan(const PointList& points, const std::vector<char>& is_fruit,
-                         const Eigen::Vector3d& origin, double max_range);
+  // registerPointcloudWithRoi's two calls on one PointcloudWithRoi (map frame): insertPointCloud
+  // of every finite point from `origin` (no range limit, a ray per point, no pruning deferred),
+  // then insertRegionScan: the voxels of the points `roi_indices` lists gain ROI, the voxels of
+  // the other points, unless an ROI point's too, lose it. Non-finite points and indices outside
+  // the cloud are skipped. Returns the number of points used.
+  std::size_t insertRoiCloud(const PointList& points, const std::vector<std::int32_t>& roi_indices,
+                             const Eigen::Vector3d& origin);
 
   bool isRoi(const RoiOcTreeNode* n) const { return n && isNodeOccupied(n) && n->roiLogOdds() > roi_threshold; }
   // Occupied ROI leaves at full depth, grouped by 26-connectivity; clusters smaller than

@@ -48,7 +48,7 @@ struct SampledView {
   bool shape_target = false;  // its target came from the estimators' extra targets
 };
 
-// RoiOcTree::getRoiKeys: leaves at full depth whose ROI log-odds is positive.
+// RoiOcTree::getRoiKeys: the voxels whose ROI log-odds is positive (a pruned leaf: each of its voxels).
 std::vector<octomap::OcTreeKey> upstreamRoiKeys(const RoiOcTree& tree);
 // RoiContourSampler's pool: free 6-neighbours of ROI cells that have an unknown 6-neighbour.
 PointList roiContourPool(const RoiOcTree& tree, const std::vector<octomap::OcTreeKey>& roi_keys);

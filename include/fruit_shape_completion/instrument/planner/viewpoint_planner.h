@@ -53,8 +53,6 @@ struct PlannerParams {
   double trolley_speed = 0.2;              // [m/s]
   double trolley_window_margin = 0.4;      // [m] the window reaches this far beyond a segment
   double octree_resolution = 0.01;  // [m] the ROI octree's cells
-  int octree_pixel_step = 3;   // every n-th pixel (both ways) goes into the 1 cm octree
-  double octree_max_range = 1.5;
   double clearance = 0.05;     // [m] free space around the camera
   unsigned seed = 1;
   int render_threads = 1;
