@@ -963,9 +963,10 @@ TEST(FruitMappingNode, AMisspeltKeyOfItsOwnIsNamedWithTheValidOnes) {
   nh.setParam("fruits/alpha", 0.01);
   nh.setParam("tf_wait", 1.0);
   std::vector<std::string> known = {"map_frame", "roi_topic", "tf_wait", "shape_estimators"};
-  const std::vector<std::string> names = ros_io::listedEstimatorNames(nh);
-  ASSERT_EQ(names, std::vector<std::string>{"fruits"});
-  known.insert(known.end(), names.begin(), names.end());
+  ros_io::ShapeEstimatorLoader loader;
+  loader.load(nh, "world");
+  ASSERT_EQ(loader.names(), std::vector<std::string>{"fruits"});
+  known.insert(known.end(), loader.names().begin(), loader.names().end());
   EXPECT_NO_THROW(ros_io::rejectUnknownKeys(nh, known));
   nh.setParam("tf_wiat", 2.0);
   try {

@@ -30,9 +30,5 @@ void readIntParam(const ros::NodeHandle& nh, const std::string& name, int* value
 // with the valid keys.
 void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>& known);
 
-// The names of the estimators listed in `nh`'s shape_estimators (entries without a string name
-// are left to the loader to refuse).
-std::vector<std::string> listedEstimatorNames(const ros::NodeHandle& nh);
-
 }  // namespace ros_io
 }  // namespace fruit_shape_completion

@@ -111,6 +111,7 @@ class RoiPlannerShapeEstimators {
   std::uint64_t resets() const { return resets_.load(); }
 
   host::ShapeEstimatorHost& host() { return loader_.host(); }
+  const std::vector<std::string>& estimatorNames() const { return loader_.names(); }
   // Also in /diagnostics ("shape estimators: PointcloudWithRoi input"); restart with reset().
   std::size_t viewsSkipped() const { return loader_.plannerViewDrops().views; }
   std::size_t indicesSkipped() const { return loader_.plannerViewDrops().indices; }  // out of range or non-finite points

@@ -36,6 +36,8 @@ class ShapeEstimatorLoader {
   void load(ros::NodeHandle& planner_nh, const std::string& map_frame, bool report_view_drops = false);
   host::ShapeEstimatorHost& host() { return host_; }
   const host::ShapeEstimatorHost& host() const { return host_; }
+  // The loaded estimators' names as the list gives them: each owns the namespace of its name.
+  const std::vector<std::string>& names() const { return names_; }
   PlannerViewDrops& plannerViewDrops() { return planner_drops_; }
   const PlannerViewDrops& plannerViewDrops() const { return planner_drops_; }
 
@@ -49,6 +51,7 @@ class ShapeEstimatorLoader {
   pluginlib::ClassLoader<ShapeEstimatorPlugin> loader_;
   host::ShapeEstimatorHost host_;
   std::vector<ShapeEstimatorPlugin*> plugins_;  // owned by host_, same order
+  std::vector<std::string> names_;              // same order
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
   ros::Timer diagnostics_timer_;
 };

@@ -47,19 +47,6 @@ void rejectUnknownKeys(const ros::NodeHandle& nh, const std::vector<std::string>
   }
 }
 
-std::vector<std::string> listedEstimatorNames(const ros::NodeHandle& nh) {
-  std::vector<std::string> names;
-  XmlRpc::XmlRpcValue list;
-  if (!nh.getParam("shape_estimators", list) || list.getType() != XmlRpc::XmlRpcValue::TypeArray) return names;
-  for (int i = 0; i < list.size(); ++i) {
-    XmlRpc::XmlRpcValue& e = list[i];
-    if (e.getType() == XmlRpc::XmlRpcValue::TypeStruct && e.hasMember("name") &&
-        e["name"].getType() == XmlRpc::XmlRpcValue::TypeString)
-      names.push_back(static_cast<std::string>(e["name"]));
-  }
-  return names;
-}
-
 const std::vector<std::string>& pluginInputKeys() {
   static const std::vector<std::string> keys = {"superellipsoids_topic", "fruit_cloud_topic",     "camera_cloud_topic",
                                                 "camera_pair_tolerance", "camera_buffer_frames", "camera_buffer_mb",

@@ -33,11 +33,12 @@ int main(int argc, char** argv) {
     if (map_frame.empty()) throw std::runtime_error("~map_frame must name a frame");
     if (roi_topic.empty()) throw std::runtime_error("~roi_topic must name a topic");
     if (!(tf_wait >= 0.0 && tf_wait <= 10.0)) throw std::runtime_error("~tf_wait must be in [0, 10] s, not " + std::to_string(tf_wait));
-    // diagnostic_period: diagnostic_updater reads it from the same namespace.
-    std::vector<std::string> known = {"map_frame", "roi_topic", "tf_wait", "shape_estimators", "diagnostic_period"};
-    for (const auto& name : ros_io::listedEstimatorNames(pnh)) known.push_back(name);
-    ros_io::rejectUnknownKeys(pnh, known);
     estimators = std::make_unique<ros_io::RoiPlannerShapeEstimators>(pnh, map_frame);
+    // diagnostic_period: diagnostic_updater reads it from the same namespace; each estimator
+    // owns the namespace of its name.
+    std::vector<std::string> known = {"map_frame", "roi_topic", "tf_wait", "shape_estimators", "diagnostic_period"};
+    known.insert(known.end(), estimators->estimatorNames().begin(), estimators->estimatorNames().end());
+    ros_io::rejectUnknownKeys(pnh, known);
   } catch (const std::exception& e) {
     ROS_FATAL("%s", e.what());
     return 1;

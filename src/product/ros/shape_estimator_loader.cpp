@@ -47,6 +47,7 @@ void ShapeEstimatorLoader::load(ros::NodeHandle& nh, const std::string& map_fram
     ros::NodeHandle plugin_nh(nh, name);
     plugin->initialize(name, plugin_nh, map_frame);
     plugins_.push_back(plugin.get());
+    names_.push_back(name);
     host_.add(std::move(plugin));
   }
   if (plugins_.empty()) return;
