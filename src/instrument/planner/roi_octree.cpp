@@ -65,20 +65,24 @@ std::size_t RoiOcTree::insertRoiCloud(const PointList& points, const std::vector
   return cloud.size();
 }
 
+std::vector<octomap::OcTreeKey> RoiOcTree::voxelKeys(const leaf_iterator& leaf) const {
+  if (leaf.getDepth() == getTreeDepth()) return {leaf.getKey()};
+  const int side = 1 << (getTreeDepth() - leaf.getDepth());
+  const octomap::OcTreeKey base =
+      coordToKey(leaf.getCoordinate() - octomap::point3d(1, 1, 1) * (0.5 * leaf.getSize() - 0.5 * resolution));
+  std::vector<octomap::OcTreeKey> keys;
+  keys.reserve(static_cast<std::size_t>(side) * side * side);
+  for (int x = 0; x < side; ++x)
+    for (int y = 0; y < side; ++y)
+      for (int z = 0; z < side; ++z) keys.emplace_back(base[0] + x, base[1] + y, base[2] + z);
+  return keys;
+}
+
 std::vector<RoiCluster> RoiOcTree::roiClusters(int min_voxels) const {
   std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash> roi;
-  for (auto it = begin_leafs(), end = end_leafs(); it != end; ++it) {
-    if (!isRoi(&*it)) continue;
-    if (it.getDepth() == getTreeDepth()) {
-      roi.insert(it.getKey());
-    } else {  // a pruned leaf: all its voxels
-      const int side = 1 << (getTreeDepth() - it.getDepth());
-      const octomap::OcTreeKey base = coordToKey(it.getCoordinate() - octomap::point3d(1, 1, 1) * (0.5 * it.getSize() - 0.5 * resolution));
-      for (int x = 0; x < side; ++x)
-        for (int y = 0; y < side; ++y)
-          for (int z = 0; z < side; ++z) roi.insert(octomap::OcTreeKey(base[0] + x, base[1] + y, base[2] + z));
-    }
-  }
+  for (auto it = begin_leafs(), end = end_leafs(); it != end; ++it)
+    if (isRoi(&*it))
+      for (const auto& k : voxelKeys(it)) roi.insert(k);
   std::vector<RoiCluster> clusters;
   std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash> seen;
   for (const auto& start : roi) {

@@ -115,22 +115,13 @@ float InflatedRois::value(const octomap::point3d& p) const {
 
 std::vector<octomap::OcTreeKey> upstreamRoiKeys(const RoiOcTree& tree) {
   std::vector<octomap::OcTreeKey> keys;
-  const int depth = tree.getTreeDepth();
-  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
-    if (!(it->roiLogOdds() > 0.0f)) continue;
-    if (static_cast<int>(it.getDepth()) == depth) {
-      keys.push_back(it.getKey());
-      continue;
+  // A pruned leaf (a solid block whose voxels are all alike) stands for all its voxels; upstream
+  // keeps their keys in its ROI key set however the tree prunes.
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+    if (it->roiLogOdds() > 0.0f) {
+      const std::vector<octomap::OcTreeKey> voxels = tree.voxelKeys(it);
+      keys.insert(keys.end(), voxels.begin(), voxels.end());
     }
-    // A pruned leaf (a solid block whose voxels are all alike) stands for all its voxels; upstream
-    // keeps their keys in its ROI key set however the tree prunes.
-    const int side = 1 << (depth - static_cast<int>(it.getDepth()));
-    const octomap::OcTreeKey base =
-        tree.coordToKey(it.getCoordinate() - octomap::point3d(1, 1, 1) * (0.5 * it.getSize() - 0.5 * tree.getResolution()));
-    for (int x = 0; x < side; ++x)
-      for (int y = 0; y < side; ++y)
-        for (int z = 0; z < side; ++z) keys.emplace_back(base[0] + x, base[1] + y, base[2] + z);
-  }
   return keys;
 }
 

@@ -58,6 +58,9 @@ class RoiOcTree : public octomap::OccupancyOcTreeBase<RoiOcTreeNode> {
   std::size_t insertRoiCloud(const PointList& points, const std::vector<std::int32_t>& roi_indices,
                              const Eigen::Vector3d& origin);
 
+  // The full-depth voxels a leaf stands for: itself, or every voxel of a pruned leaf's cube.
+  std::vector<octomap::OcTreeKey> voxelKeys(const leaf_iterator& leaf) const;
+
   bool isRoi(const RoiOcTreeNode* n) const { return n && isNodeOccupied(n) && n->roiLogOdds() > roi_threshold; }
   // Occupied ROI leaves at full depth, grouped by 26-connectivity; clusters smaller than
   // min_voxels are dropped.
