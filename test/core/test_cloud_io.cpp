@@ -118,24 +118,22 @@ TEST(CloudIo, TextWithExtraColumnsCommentsAndNaN) {
   ASSERT_TRUE(named.ok()) << named.error;
   ASSERT_EQ(named.points.size(), 2u);
   EXPECT_EQ(named.points[0], Eigen::Vector3d(0.1, 0.2, 0.3));
-  writeFile(path, ",x,y,z\n0,0.1,0.2,0.3\n");
-  const CloudFile pandas = readPointCloud(path);
-  ASSERT_TRUE(pandas.ok()) << pandas.error;
-  EXPECT_EQ(pandas.points.at(0), Eigen::Vector3d(0.1, 0.2, 0.3));
+  // `text` read whole, its first point (0.1, 0.2, 0.3).
+  const auto readsFirstPoint = [&](const std::string& text) {
+    writeFile(path, text);
+    const CloudFile f = readPointCloud(path);
+    ASSERT_TRUE(f.ok()) << text << ": " << f.error;
+    EXPECT_EQ(f.points.at(0), Eigen::Vector3d(0.1, 0.2, 0.3)) << text;
+  };
+  readsFirstPoint(",x,y,z\n0,0.1,0.2,0.3\n");
   writeFile(path, "x y w\n0.1 0.2 0.3\n");
   const CloudFile no_z = readPointCloud(path);
   EXPECT_FALSE(no_z.ok());
   EXPECT_NE(no_z.error.find("naming the x, y and z"), std::string::npos) << no_z.error;
   // Units after the names, and a label per point in a column the header names too.
-  writeFile(path, "Point ID,x (m),y (m),z (m),label\n1,0.1,0.2,0.3,leaf\n");
-  const CloudFile units = readPointCloud(path);
-  ASSERT_TRUE(units.ok()) << units.error;
-  EXPECT_EQ(units.points.at(0), Eigen::Vector3d(0.1, 0.2, 0.3));
+  readsFirstPoint("Point ID,x (m),y (m),z (m),label\n1,0.1,0.2,0.3,leaf\n");
   // Without a header, words after x, y and z are extra columns, as before.
-  writeFile(path, "0.1 0.2 0.3 leaf\n");
-  const CloudFile labelled = readPointCloud(path);
-  ASSERT_TRUE(labelled.ok()) << labelled.error;
-  EXPECT_EQ(labelled.points.at(0), Eigen::Vector3d(0.1, 0.2, 0.3));
+  readsFirstPoint("0.1 0.2 0.3 leaf\n");
   std::remove(path.c_str());
   // A NaN row in an ASCII PLY is kept as a non-finite point (counted downstream), not fatal.
   const std::string ply = tempPath("nan.ply");
