@@ -120,6 +120,9 @@ class FruitShapePipeline {
   // A split decision (made, or refused for a rough fit) is revisited once its cluster has grown
   // by this share: more of the fruit seen may tell otherwise.
   static constexpr double kRecheckGrowth = 0.25;
+  // Splitting as before, a point farther than this many fit.max_rms from every earlier fruit's
+  // fit belongs to none of them.
+  static constexpr double kLeftOverRms = 2.5;
 
   // The fit functions below may run on several threads at once (one cluster, or one half of a
   // split, each): they read tracks_ and params_ and count into their own `stats`.
@@ -140,11 +143,12 @@ class FruitShapePipeline {
   Parts estimateWithSplit(const PointList& points, const std::vector<Eigen::Vector3d>& normals, int depth,
                           PipelineStats* stats, const std::unordered_set<std::uint64_t>* cells = nullptr,
                           const FruitEstimate* fitted_whole = nullptr, bool split_rough = false) const;
-  // A changed cluster that covers exactly the parts of one earlier split, all accepted: its
-  // points go to the part whose fit explains them better, and each part keeps its fit (see
-  // refit_tolerance) or is refitted from it. Once the cluster has grown by a quarter since the
-  // split was decided, the whole cluster is fitted first and kept if it fits (a merge). Empty if
-  // the cluster is not such a one or a part no longer fits: the full split runs then.
+  // A changed cluster that covers several earlier fruits, all accepted (the parts of one split,
+  // or fruits of their own it has grown together): its points go to the fruit whose fit
+  // explains them better, and each keeps its fit (see refit_tolerance) or is refitted from it.
+  // Fruits just grown together, or the parts of a split once the cluster has grown by a quarter
+  // since, are first fitted whole and kept whole if that fits (a merge). Empty if the cluster is
+  // not such a one or a part no longer fits: the full split runs then.
   // The cluster's normals and whole fit, if computed on the way, go to `normals` and `whole`.
   std::vector<Track> splitAsBefore(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
                                    const std::vector<char>& reused, std::vector<Eigen::Vector3d>* normals,

@@ -16,7 +16,7 @@ struct ShapeTargetParams {
   // point within the missing-surface threshold elsewhere) hands over no targets. 1: all hand over.
   double settled_coverage = 1.0;
   int per_fruit = 0;        // at most this many targets per fruit, spread over its unseen part; 0: all
-  double offset = 0.03;     // [m] along the surface's outward normal
+  double offset = 0.05;     // [m] along the surface's outward normal
   // Hand over each target's outward normal, so that the planner views it from the side it
   // faces; false: zero directions (any side).
   bool view_side = true;

@@ -329,6 +329,84 @@ TEST(FruitShapePipeline, TouchingFruitsSplitBeforeAreSplitAgainAlongTheirFits) {
   EXPECT_GE(always.lastStats().fitted, 3);
 }
 
+TEST(FruitShapePipeline, FruitsMappedApartAreKeptWhenAViewGrowsThemIntoOneCluster) {
+  // Five 4 cm spheres in a cross, 1.5 cm apart: five clusters. A later view sees what joins them
+  // (stalks, a leaf edge, blur): one cluster of five fruits, more than a split in two, twice,
+  // can part. Each keeps its fit and its id.
+  std::vector<Superellipsoid> truth(5);
+  const Eigen::Vector3d centre(0, 0, 0.5);
+  const Eigen::Vector3d offsets[5] = {{0, 0, 0}, {0.095, 0, 0}, {-0.095, 0, 0}, {0, 0, 0.095}, {0, 0, -0.095}};
+  for (int k = 0; k < 5; ++k) {
+    truth[k].a = truth[k].b = truth[k].c = 0.04;
+    truth[k].t = centre + offsets[k];
+  }
+  auto view = [&](double seen, unsigned seed) {
+    PointList cloud;
+    for (int k = 0; k < 5; ++k) {
+      const PointList part = scan(truth[k], seen, Eigen::Vector3d(0, -1, 0.2), seed + 10 * k);
+      cloud.insert(cloud.end(), part.begin(), part.end());
+    }
+    return cloud;
+  };
+  auto check = [&](const std::vector<FruitEstimate>& fruits) {
+    ASSERT_EQ(fruits.size(), 5u);
+    for (const auto& t : truth) {
+      const FruitEstimate* f = nearest(fruits, t.t);
+      ASSERT_TRUE(f->accepted) << f->reason;
+      EXPECT_LT((f->center() - t.t).norm(), 0.005);
+      EXPECT_NEAR(f->volume, t.volume(), 0.1 * t.volume());
+    }
+  };
+  FruitShapePipeline pipeline;
+  check(pipeline.update(view(0.75, 1)));
+  ASSERT_EQ(pipeline.lastStats().clusters, 5);
+  std::vector<int> before;
+  for (const auto& f : pipeline.fruits()) before.push_back(f.id);
+  // Bridges of points 3 mm apart across each gap, on the seen side.
+  PointList joined = view(0.8, 2);
+  for (int k = 1; k < 5; ++k) {
+    const Eigen::Vector3d u = offsets[k].normalized();
+    const Eigen::Vector3d side = Eigen::Vector3d(0, -1, 0);
+    for (int row = -1; row <= 1; ++row)
+      for (double d = 0.037; d <= 0.058; d += 0.003) joined.push_back(centre + d * u + (0.02 + 0.004 * row) * side);
+  }
+  check(pipeline.update(joined));
+  EXPECT_EQ(pipeline.lastStats().clusters, 1);
+  std::vector<int> after;
+  for (const auto& f : pipeline.fruits()) after.push_back(f.id);
+  std::sort(before.begin(), before.end());
+  std::sort(after.begin(), after.end());
+  EXPECT_EQ(after, before);
+}
+
+TEST(FruitShapePipeline, AFruitSeenInTwoPiecesIsOneFruitOnceAViewJoinsThem) {
+  // Two opposite caps of one 5 cm fruit: two clusters, each fitted as a fruit of its own. Seen
+  // all round, the pieces' fits interpenetrate: one fruit, not two.
+  Superellipsoid truth;
+  truth.a = truth.b = truth.c = 0.05;
+  truth.t = Eigen::Vector3d(0, 0, 0.5);
+  PointList caps = scan(truth, 0.3, Eigen::Vector3d(1, 0, 0), 1);
+  const PointList other = scan(truth, 0.3, Eigen::Vector3d(-1, 0, 0), 2);
+  caps.insert(caps.end(), other.begin(), other.end());
+  FruitShapePipeline pipeline;
+  pipeline.update(caps);
+  ASSERT_EQ(pipeline.lastStats().clusters, 2);
+  int accepted = 0;
+  for (const auto& f : pipeline.fruits()) accepted += f.accepted;
+  ASSERT_EQ(accepted, 2);
+  // Seen all round with 4 mm noise: no fit comes within split_rms, so the pieces decide.
+  ScanParams all_round;
+  all_round.visible_fraction = 1.0;
+  all_round.noise_sigma = 0.004;
+  all_round.seed = 3;
+  const std::vector<FruitEstimate>& fruits =
+      pipeline.update(scanFruit(SyntheticFruit::fromSuperellipsoid(truth), all_round));
+  ASSERT_EQ(fruits.size(), 1u);
+  ASSERT_TRUE(fruits[0].accepted) << fruits[0].reason;
+  EXPECT_LT((fruits[0].center() - truth.t).norm(), 0.005);
+  EXPECT_NEAR(fruits[0].volume, truth.volume(), 0.1 * truth.volume());
+}
+
 TEST(FruitShapePipeline, TwoSmallTouchingFruitsThatOneShapeFitsRoughlyAreFittedApart) {
   // A 4.4 cm and a 5 cm fruit, surfaces 4 mm apart, 40 % seen from one side: one
   // superellipsoid covers both within the fit's max_rms (4.7 mm), which reported one fruit of

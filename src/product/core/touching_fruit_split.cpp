@@ -47,32 +47,36 @@ double elongation(const Superellipsoid& s) {
 std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused,
     std::vector<Eigen::Vector3d>* normals_out, std::optional<FruitEstimate>* whole_out, PipelineStats* stats) const {
-  // The previous fruits the cluster shares cells with: all parts of one split, all accepted.
+  // The accepted previous fruits the cluster shares cells with: the parts of one split, or
+  // fruits of their own that the cluster has grown together (a view saw what joins them).
+  // Rejected ones (leaf pieces, rough fits) do not stop it: their points are left over below.
   std::vector<int> parts;
   for (std::size_t k = 0; k < tracks_.size(); ++k)
     for (auto cell : tracks_[k].cells)
       if (cells.count(cell)) {
-        parts.push_back(static_cast<int>(k));
+        if (reused[k]) return {};
+        if (tracks_[k].estimate.accepted) parts.push_back(static_cast<int>(k));
         break;
       }
   if (parts.size() < 2) return {};
   const Track& first = tracks_[parts.front()];
-  if (first.split_points == 0) return {};
   std::size_t same_split = 0;
   for (const auto& t : tracks_)
-    same_split += t.cluster_signature == first.cluster_signature && t.cluster_points == first.cluster_points;
-  if (same_split != parts.size()) return {};
+    same_split += t.estimate.accepted && t.cluster_signature == first.cluster_signature &&
+                  t.cluster_points == first.cluster_points;
+  bool one_split = first.split_points != 0 && same_split == parts.size();
   for (int k : parts) {
     const Track& t = tracks_[k];
-    if (reused[k] || !t.estimate.accepted || t.split_points != first.split_points ||
-        t.cluster_signature != first.cluster_signature || t.cluster_points != first.cluster_points)
-      return {};
+    one_split = one_split && t.split_points == first.split_points && t.cluster_signature == first.cluster_signature &&
+                t.cluster_points == first.cluster_points;
   }
   std::vector<Eigen::Vector3d>& normals = *normals_out;  // of the whole cluster, once a fit needs them
-  // Once the cluster has grown since the split was decided, the whole cluster is fitted again
-  // first, so that a fruit split in error merges when more of it is seen.
-  const bool recheck =
-      static_cast<double>(points.size()) > (1.0 + kRecheckGrowth) * static_cast<double>(first.split_points);
+  // Once the cluster has grown since the split was decided, or has just grown together, the
+  // whole cluster is fitted first, so that a fruit split in error (or seen in two pieces)
+  // merges. Without this, fruits grown together went to the full split, which on three or four
+  // of them could lose them all.
+  const bool recheck = !one_split || static_cast<double>(points.size()) >
+                                         (1.0 + kRecheckGrowth) * static_cast<double>(first.split_points);
   if (recheck) {
     normals = normalsOf(points, stats);
     *whole_out = estimateCluster(points, normals, -1, &tracks_[static_cast<std::size_t>(bestOverlap(cells))], stats);
@@ -85,47 +89,104 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
       return {whole};
     }
   }
-  // Each point to the part whose fit explains it better.
+  // Each point to the part whose fit explains it better; a point far from every fit (a new
+  // fruit grown onto them, a leaf) is left over.
   std::vector<Eigen::VectorXd> distance;
   for (int k : parts) distance.push_back(radialDistances(points, tracks_[k].estimate.shape));
+  const std::size_t kLeftOver = parts.size();
   std::vector<std::size_t> label(points.size(), 0);
-  std::vector<PointList> part_points(parts.size());
+  std::vector<PointList> part_points(parts.size() + 1);
   for (std::size_t i = 0; i < points.size(); ++i) {
     std::size_t& best = label[i];
     for (std::size_t j = 1; j < parts.size(); ++j)
       if (distance[j][static_cast<Eigen::Index>(i)] < distance[best][static_cast<Eigen::Index>(i)]) best = j;
+    if (!(distance[best][static_cast<Eigen::Index>(i)] <= kLeftOverRms * params_.fit.max_rms)) best = kLeftOver;
     part_points[best].push_back(points[i]);
   }
-  std::vector<Track> out;
+  auto normalsOfParts = [&](const std::vector<std::size_t>& js) {
+    if (normals.empty()) normals = normalsOf(points, stats);
+    std::vector<Eigen::Vector3d> out;
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (std::find(js.begin(), js.end(), label[i]) != js.end()) out.push_back(normals[i]);
+    return out;
+  };
+  // Each earlier fruit keeps its fit while that explains its points, or is refitted from it. A
+  // fruit this view made worse to fit keeps the fit that explained it before: one blurred view
+  // must not lose a mapped fruit. One left with fewer points than a cluster needs was a piece of
+  // its neighbours' fits and goes.
+  struct Piece {
+    Track track;
+    std::vector<std::size_t> labels;  // which parts' points it holds
+    PointList points;
+    int previous;  // the earlier fruit it started from
+  };
+  std::vector<Piece> pieces;
   int kept = 0;
   for (std::size_t j = 0; j < parts.size(); ++j) {
     const Track& previous = tracks_[parts[j]];
     const PointList& pts = part_points[j];
-    if (static_cast<int>(pts.size()) < params_.clustering.min_size) return {};
-    Track t;
+    if (static_cast<int>(pts.size()) < params_.clustering.min_size) continue;
+    Piece piece{Track(), {j}, pts, parts[j]};
+    Track& t = piece.track;
     t.split_points = recheck ? points.size() : previous.split_points;
     t.cells = occupiedCells(pts);
-    if (stillFits(previous.estimate, previous.fitted_points, pts)) {
+    FruitEstimate refit;
+    const bool still = stillFits(previous.estimate, previous.fitted_points, pts);
+    if (!still) {
+      refit = estimateCluster(pts, normalsOfParts({j}), -1, &previous, stats);
+      ++stats->fitted;
+    }
+    if (!still && refit.accepted) {
+      t.estimate = std::move(refit);
+      t.fitted_points = pts.size();
+    } else {
       t.estimate = keptEstimate(previous.estimate, pts);
       t.fitted_points = previous.fitted_points;
       ++kept;
-    } else {
-      if (normals.empty()) normals = normalsOf(points, stats);
-      std::vector<Eigen::Vector3d> part_normals;
-      for (std::size_t i = 0; i < points.size(); ++i)
-        if (label[i] == j) part_normals.push_back(normals[i]);
-      t.estimate = estimateCluster(pts, part_normals, -1, &previous, stats);
-      ++stats->fitted;
-      if (!t.estimate.accepted) return {};
-      t.fitted_points = pts.size();
     }
-    out.push_back(std::move(t));
+    pieces.push_back(std::move(piece));
   }
-  std::vector<const Superellipsoid*> fits;
-  for (const Track& t : out) fits.push_back(&t.estimate.shape);
-  if (anyTwoOneFruit(fits)) return {};
+  if (pieces.empty()) return {};
+  // Two fits that interpenetrate are one fruit (seen in two pieces before, or split in error):
+  // their points are fitted together, or else the larger piece's fit takes them all.
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (std::size_t a = 0; a < pieces.size() && !merged; ++a)
+      for (std::size_t b = a + 1; b < pieces.size() && !merged; ++b) {
+        if (!oneFruit(pieces[a].track.estimate.shape, pieces[b].track.estimate.shape)) continue;
+        const std::size_t keep = pieces[a].points.size() >= pieces[b].points.size() ? a : b;
+        const std::size_t gone = keep == a ? b : a;
+        Piece& big = pieces[keep];
+        big.points.insert(big.points.end(), pieces[gone].points.begin(), pieces[gone].points.end());
+        big.labels.insert(big.labels.end(), pieces[gone].labels.begin(), pieces[gone].labels.end());
+        Track& t = big.track;
+        t.cells = occupiedCells(big.points);
+        FruitEstimate both = estimateCluster(big.points, normalsOfParts(big.labels), -1,
+                                             &tracks_[static_cast<std::size_t>(big.previous)], stats);
+        ++stats->fitted;
+        t.estimate = both.accepted ? std::move(both) : keptEstimate(t.estimate, big.points);
+        t.fitted_points = big.points.size();
+        pieces.erase(pieces.begin() + static_cast<std::ptrdiff_t>(gone));
+        merged = true;
+      }
+  }
+  std::vector<Track> out;
+  for (auto& piece : pieces) out.push_back(std::move(piece.track));
+  // What is left over, if a cluster's worth, is fitted as a cluster of its own.
+  const PointList& rest = part_points[kLeftOver];
+  if (static_cast<int>(rest.size()) >= params_.clustering.min_size) {
+    const std::vector<Eigen::Vector3d> rest_normals = normalsOfParts({kLeftOver});
+    for (auto& part : estimateWithSplit(rest, rest_normals, 0, stats)) {
+      Track t;
+      t.estimate = std::move(part.second);
+      t.fitted_points = part.first.size();
+      t.cells = occupiedCells(part.first);
+      t.split_points = points.size();
+      out.push_back(std::move(t));
+    }
+  }
   stats->kept += kept;
-  ++stats->splits;
+  stats->splits += out.size() > 1 ? 1 : 0;
   return out;
 }
 
