@@ -143,12 +143,15 @@ class FruitShapePipeline {
   Parts estimateWithSplit(const PointList& points, const std::vector<Eigen::Vector3d>& normals, int depth,
                           PipelineStats* stats, const std::unordered_set<std::uint64_t>* cells = nullptr,
                           const FruitEstimate* fitted_whole = nullptr, bool split_rough = false) const;
-  // A changed cluster that covers several earlier fruits, all accepted (the parts of one split,
-  // or fruits of their own it has grown together): its points go to the fruit whose fit
-  // explains them better, and each keeps its fit (see refit_tolerance) or is refitted from it.
-  // Fruits just grown together, or the parts of a split once the cluster has grown by a quarter
-  // since, are first fitted whole and kept whole if that fits (a merge). Empty if the cluster is
-  // not such a one or a part no longer fits: the full split runs then.
+  // A changed cluster that holds at least half of each of two or more accepted earlier fruits
+  // (the parts of one split, or fruits of their own it has grown together): its points go to
+  // the fruit whose fit explains them better, and each keeps its fit (see refit_tolerance), is
+  // refitted from it, or keeps it if the refit fails; points far from every fit, and those of a
+  // fruit left with fewer than clustering.min_size, are clustered and fitted on their own; fits
+  // that interpenetrate are one fruit, fitted together. Fruits just grown together, or the parts
+  // of a split once the cluster has grown by a quarter since, are first fitted whole and kept
+  // whole if that fits within split_rms (a merge). Empty if the cluster is not such a one (or
+  // holds a fruit already taken): the full split runs then.
   // The cluster's normals and whole fit, if computed on the way, go to `normals` and `whole`.
   std::vector<Track> splitAsBefore(const PointList& points, const std::unordered_set<std::uint64_t>& cells,
                                    const std::vector<char>& reused, std::vector<Eigen::Vector3d>* normals,

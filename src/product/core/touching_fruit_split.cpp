@@ -47,17 +47,18 @@ double elongation(const Superellipsoid& s) {
 std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     const PointList& points, const std::unordered_set<std::uint64_t>& cells, const std::vector<char>& reused,
     std::vector<Eigen::Vector3d>* normals_out, std::optional<FruitEstimate>* whole_out, PipelineStats* stats) const {
-  // The accepted previous fruits the cluster shares cells with: the parts of one split, or
-  // fruits of their own that the cluster has grown together (a view saw what joins them).
-  // Rejected ones (leaf pieces, rough fits) do not stop it: their points are left over below.
+  // The accepted previous fruits with at least half their cells in the cluster: the parts of
+  // one split, or fruits of their own that the cluster has grown together (a view saw what
+  // joins them). A neighbour that merely shares a cell across a gap is another cluster's;
+  // rejected ones (leaf pieces, rough fits) do not stop it: their points are left over below.
   std::vector<int> parts;
-  for (std::size_t k = 0; k < tracks_.size(); ++k)
-    for (auto cell : tracks_[k].cells)
-      if (cells.count(cell)) {
-        if (reused[k]) return {};
-        if (tracks_[k].estimate.accepted) parts.push_back(static_cast<int>(k));
-        break;
-      }
+  for (std::size_t k = 0; k < tracks_.size(); ++k) {
+    std::size_t shared = 0;
+    for (auto cell : tracks_[k].cells) shared += cells.count(cell);
+    if (shared == 0 || 2 * shared < tracks_[k].cells.size()) continue;
+    if (reused[k]) return {};
+    if (tracks_[k].estimate.accepted) parts.push_back(static_cast<int>(k));
+  }
   if (parts.size() < 2) return {};
   const Track& first = tracks_[parts.front()];
   std::size_t same_split = 0;
@@ -103,37 +104,40 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     if (!(distance[best][static_cast<Eigen::Index>(i)] <= kLeftOverRms * params_.fit.max_rms)) best = kLeftOver;
     part_points[best].push_back(points[i]);
   }
-  auto normalsOfParts = [&](const std::vector<std::size_t>& js) {
-    if (normals.empty()) normals = normalsOf(points, stats);
-    std::vector<Eigen::Vector3d> out;
-    for (std::size_t i = 0; i < points.size(); ++i)
-      if (std::find(js.begin(), js.end(), label[i]) != js.end()) out.push_back(normals[i]);
-    return out;
-  };
   // Each earlier fruit keeps its fit while that explains its points, or is refitted from it. A
   // fruit this view made worse to fit keeps the fit that explained it before: one blurred view
   // must not lose a mapped fruit. One left with fewer points than a cluster needs was a piece of
-  // its neighbours' fits and goes.
+  // its neighbours' fits: its points are left over.
+  auto normalsOfPart = [&](std::size_t j) {
+    if (normals.empty()) normals = normalsOf(points, stats);
+    std::vector<Eigen::Vector3d> out;
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (label[i] == j) out.push_back(normals[i]);
+    return out;
+  };
+  const std::size_t split_points = recheck ? points.size() : first.split_points;
   struct Piece {
     Track track;
-    std::vector<std::size_t> labels;  // which parts' points it holds
     PointList points;
-    int previous;  // the earlier fruit it started from
+    const Track* previous;  // the earlier fruit it started from, if any
   };
   std::vector<Piece> pieces;
   int kept = 0;
   for (std::size_t j = 0; j < parts.size(); ++j) {
     const Track& previous = tracks_[parts[j]];
-    const PointList& pts = part_points[j];
-    if (static_cast<int>(pts.size()) < params_.clustering.min_size) continue;
-    Piece piece{Track(), {j}, pts, parts[j]};
+    PointList& pts = part_points[j];
+    if (static_cast<int>(pts.size()) < params_.clustering.min_size) {
+      part_points[kLeftOver].insert(part_points[kLeftOver].end(), pts.begin(), pts.end());
+      continue;
+    }
+    Piece piece{Track(), pts, &previous};
     Track& t = piece.track;
-    t.split_points = recheck ? points.size() : previous.split_points;
+    t.split_points = split_points;
     t.cells = occupiedCells(pts);
     FruitEstimate refit;
     const bool still = stillFits(previous.estimate, previous.fitted_points, pts);
     if (!still) {
-      refit = estimateCluster(pts, normalsOfParts({j}), -1, &previous, stats);
+      refit = estimateCluster(pts, normalsOfPart(j), -1, &previous, stats);
       ++stats->fitted;
     }
     if (!still && refit.accepted) {
@@ -142,11 +146,32 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
     } else {
       t.estimate = keptEstimate(previous.estimate, pts);
       t.fitted_points = previous.fitted_points;
-      ++kept;
+      kept += still ? 1 : 0;
     }
     pieces.push_back(std::move(piece));
   }
   if (pieces.empty()) return {};
+  // What is left over is clustered and fitted on its own (a new fruit grown onto them); its
+  // accepted fits join the pieces, so that one overlapping an earlier fruit merges with it.
+  std::vector<Track> rejected;
+  const PointList& rest = part_points[kLeftOver];
+  if (static_cast<int>(rest.size()) >= params_.clustering.min_size) {
+    for (const auto& idx : euclideanClusters(rest, params_.clustering)) {
+      PointList cluster;
+      for (int i : idx) cluster.push_back(rest[static_cast<std::size_t>(i)]);
+      for (auto& part : estimateWithSplit(cluster, normalsOf(cluster, stats), 0, stats)) {
+        Track t;
+        t.estimate = std::move(part.second);
+        t.fitted_points = part.first.size();
+        t.cells = occupiedCells(part.first);
+        t.split_points = split_points;
+        if (t.estimate.accepted)
+          pieces.push_back(Piece{std::move(t), std::move(part.first), nullptr});
+        else
+          rejected.push_back(std::move(t));
+      }
+    }
+  }
   // Two fits that interpenetrate are one fruit (seen in two pieces before, or split in error):
   // their points are fitted together, or else the larger piece's fit takes them all.
   for (bool merged = true; merged;) {
@@ -158,33 +183,25 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
         const std::size_t gone = keep == a ? b : a;
         Piece& big = pieces[keep];
         big.points.insert(big.points.end(), pieces[gone].points.begin(), pieces[gone].points.end());
-        big.labels.insert(big.labels.end(), pieces[gone].labels.begin(), pieces[gone].labels.end());
+        if (big.previous == nullptr) big.previous = pieces[gone].previous;
         Track& t = big.track;
         t.cells = occupiedCells(big.points);
-        FruitEstimate both = estimateCluster(big.points, normalsOfParts(big.labels), -1,
-                                             &tracks_[static_cast<std::size_t>(big.previous)], stats);
+        FruitEstimate both = estimateCluster(big.points, normalsOf(big.points, stats), -1, big.previous, stats);
         ++stats->fitted;
-        t.estimate = both.accepted ? std::move(both) : keptEstimate(t.estimate, big.points);
-        t.fitted_points = big.points.size();
+        if (both.accepted) {
+          t.estimate = std::move(both);
+          t.fitted_points = big.points.size();
+        } else {
+          t.estimate = keptEstimate(t.estimate, big.points);
+        }
         pieces.erase(pieces.begin() + static_cast<std::ptrdiff_t>(gone));
         merged = true;
       }
   }
   std::vector<Track> out;
   for (auto& piece : pieces) out.push_back(std::move(piece.track));
-  // What is left over, if a cluster's worth, is fitted as a cluster of its own.
-  const PointList& rest = part_points[kLeftOver];
-  if (static_cast<int>(rest.size()) >= params_.clustering.min_size) {
-    const std::vector<Eigen::Vector3d> rest_normals = normalsOfParts({kLeftOver});
-    for (auto& part : estimateWithSplit(rest, rest_normals, 0, stats)) {
-      Track t;
-      t.estimate = std::move(part.second);
-      t.fitted_points = part.first.size();
-      t.cells = occupiedCells(part.first);
-      t.split_points = points.size();
-      out.push_back(std::move(t));
-    }
-  }
+  for (auto& t : rejected) out.push_back(std::move(t));
+  if (out.size() == 1) out.front().split_points = 0;  // one fruit: a cluster of its own
   stats->kept += kept;
   stats->splits += out.size() > 1 ? 1 : 0;
   return out;
