@@ -496,13 +496,23 @@ TEST(FruitShapePipeline, ARoughFitAsRoundAsOneFruitIsNotTriedSplit) {
   EXPECT_NEAR(f->volume, s.volume(), 0.2 * s.volume());
 }
 
+// fit_stress --seed 1 --views cap, case 344: a 5.3 cm superellipsoid seen all round (167.2 cm^3
+// at the origin of this cloud's fruit, (0, 0, 0.5)) and a touching neighbour seen from one side,
+// whose fit reaches 1.5 cm into the fruit's.
+struct BulgingPair {
+  PointList cloud = readXyz("stress_pair_with_bulging_neighbour.xyz");
+  Eigen::Vector3d center{0.0, 0.0, 0.5};
+  double true_volume = 167.2e-6;
+};
+
 TEST(FruitShapePipeline, ATouchingPairMappedApartStaysTwoWhenAViewJoinsThem) {
-  // The pair below, first seen without the points where they meet (two clusters, two fruits),
-  // then whole (one cluster): split along the two fits, they stay two.
-  const PointList cloud = readXyz("stress_pair_with_bulging_neighbour.xyz");
+  // The pair, first seen without the points where they meet (two clusters, two fruits), then
+  // whole (one cluster): split along the two fits, they stay two.
+  const BulgingPair pair;
+  const PointList& cloud = pair.cloud;
   ASSERT_GT(cloud.size(), 1600u);
-  const Eigen::Vector3d center(0.0, 0.0, 0.5);
-  const double true_volume = 167.2e-6;
+  const Eigen::Vector3d& center = pair.center;
+  const double true_volume = pair.true_volume;
   FruitShapePipeline once;
   once.update(cloud);
   const FruitEstimate* fruit = nearest(once.fruits(), center);
@@ -530,20 +540,16 @@ TEST(FruitShapePipeline, ATouchingPairMappedApartStaysTwoWhenAViewJoinsThem) {
 }
 
 TEST(FruitShapePipeline, ATouchingPairStaysSplitWhenTheHalfSeenNeighboursFitBulgesIntoTheFruit) {
-  // fit_stress --seed 1 --views cap, case 344: a 5.3 cm superellipsoid seen all round (167.2 cm^3 at the
-  // origin of this cloud's fruit, (0, 0, 0.5)) and a touching neighbour seen from one side. The
-  // neighbour's fit reaches 1.5 cm into the fruit's, yet the two explain the points three times
+  // The neighbour's fit bulges into the fruit's, yet the two explain the points three times
   // better than one shape: they stay two fruits.
-  const PointList cloud = readXyz("stress_pair_with_bulging_neighbour.xyz");
-  ASSERT_GT(cloud.size(), 1600u);
-  const Eigen::Vector3d center(0.0, 0.0, 0.5);
-  const double true_volume = 167.2e-6;
+  const BulgingPair pair;
+  ASSERT_GT(pair.cloud.size(), 1600u);
   FruitShapePipeline pipeline;
-  const auto [accepted, f] = acceptedAndNearest(pipeline, cloud, center);
+  const auto [accepted, f] = acceptedAndNearest(pipeline, pair.cloud, pair.center);
   EXPECT_EQ(accepted, 2);
   ASSERT_TRUE(f->accepted) << f->reason;
-  EXPECT_LT((f->center() - center).norm(), 0.003);
-  EXPECT_NEAR(f->volume, true_volume, 0.1 * true_volume);
+  EXPECT_LT((f->center() - pair.center).norm(), 0.003);
+  EXPECT_NEAR(f->volume, pair.true_volume, 0.1 * pair.true_volume);
 }
 
 TEST(FruitShapePipeline, HalfSeenPeppersFromCamerasAreNotFittedLarge) {
