@@ -125,12 +125,12 @@ std::vector<FruitShapePipeline::Track> FruitShapePipeline::splitAsBefore(
   int kept = 0;
   for (std::size_t j = 0; j < parts.size(); ++j) {
     const Track& previous = tracks_[parts[j]];
-    PointList& pts = part_points[j];
-    if (static_cast<int>(pts.size()) < params_.clustering.min_size) {
-      part_points[kLeftOver].insert(part_points[kLeftOver].end(), pts.begin(), pts.end());
+    if (static_cast<int>(part_points[j].size()) < params_.clustering.min_size) {
+      part_points[kLeftOver].insert(part_points[kLeftOver].end(), part_points[j].begin(), part_points[j].end());
       continue;
     }
-    Piece piece{Track(), pts, &previous};
+    Piece piece{Track(), std::move(part_points[j]), &previous};
+    const PointList& pts = piece.points;
     Track& t = piece.track;
     t.split_points = split_points;
     t.cells = occupiedCells(pts);
